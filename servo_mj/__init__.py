@@ -1,0 +1,1 @@
+"""MuJoCo side of the ServoBot colony: model loading, gaits, arena, physics sensors, validation."""

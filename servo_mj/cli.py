@@ -1,0 +1,42 @@
+"""The ``servobot`` command: a thin dispatcher over the libraries' own CLIs.
+
+Each subcommand lives beside the library it drives and exposes ``main(argv)``; modules are
+imported lazily so that ``servobot evolve`` never imports MuJoCo.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "calibrate": ("calibration.cli", "regenerate the gait table (Figure 4) from MuJoCo physics"),
+    "evolve": ("evolve.cli", "run the CGA: navigation or coverage stage"),
+    "trace": ("evolve.trace", "print (and record) a controller's run step by step"),
+    "validate": ("servo_mj.validate_cli", "run a chromosome in the table simulation and physics"),
+    "reproduce": ("servo_mj.reproduce", "the end-to-end reproduction into one run folder"),
+}
+
+
+def _usage() -> str:
+    lines = ["usage: servobot COMMAND [options]", "", "commands:"]
+    lines += [f"  {name:<10} {help_}" for name, (_, help_) in COMMANDS.items()]
+    lines += ["", "Run 'servobot COMMAND --help' for a command's options."]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(_usage())
+        return 0 if argv else 2
+    name, rest = argv[0], argv[1:]
+    if name not in COMMANDS:
+        print(f"servobot: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(COMMANDS[name][0])
+    return int(module.main(rest) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
