@@ -1,0 +1,4 @@
+"""The cyclic genetic algorithm on a fast table simulation of the ServoBot colony.
+
+Pure numerics: nothing here imports MuJoCo. See ``../shared/SPEC.md`` for the contract.
+"""

@@ -1,0 +1,142 @@
+"""Settings of the table world and the GA (SPEC §3, §5, §6) as frozen dataclasses.
+
+Every value the SPEC marks [chosen] is a named field here; [paper] values are fields too so
+that a run folder's saved settings say exactly how it was made. Units: lengths in arena units
+(1 unit = 1 cm), angles in degrees (0 = north/+y, clockwise positive), power in volts.
+Override with ``dataclasses.replace``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class WorldSettings:
+    """The colony arena, sensors and power model (SPEC §3)."""
+
+    arena_size: float = 500.0
+    """Side of the square arena, units [paper]."""
+    grid_n: int = 10
+    """Squares per side of the coverage grid [paper]."""
+    square_size: float = 50.0
+    """Side of one coverage square, units [paper]."""
+    contact_half_width: float = 19.0
+    """A square is reached inside its central 38 × 38: |dx|, |dy| ≤ this [paper]."""
+    kill_margin: float = 25.0
+    """A centre closer than this to a wall ends the run [paper]."""
+
+    station_y: float = 250.0
+    """Power-station plate centre on the east wall, y [chosen]."""
+    station_width: float = 60.0
+    """Power-station plate width along the wall [chosen]."""
+    dock_x_min: float = 455.0
+    """Docking needs x ≥ this after a gait cycle [chosen]."""
+    dock_y_half_width: float = 30.0
+    """Docking needs |y − station_y| ≤ this [chosen]."""
+    dock_heading_deg: float = 90.0
+    """Docking heading (east, facing the plate) [chosen]."""
+    dock_heading_tol_deg: float = 30.0
+    """Docking needs the heading within ± this of ``dock_heading_deg`` [chosen]."""
+    dock_point: tuple[float, float] = (465.0, 250.0)
+    """Point whose distance scores navigation runs that do not dock (SPEC §6) [chosen]."""
+
+    lights: tuple[tuple[float, float], ...] = ((500.0, 235.0), (500.0, 265.0))
+    """Point light sources, (x, y) units [paper: two points; positions chosen]."""
+    light_axis_deg: float = 270.0
+    """Each source lights a cone around this heading (west) [chosen]."""
+    light_half_angle_deg: float = 60.0
+    """Half-angle of each source's lit cone [chosen]."""
+    light_left_span_deg: tuple[float, float] = (-60.0, 20.0)
+    """Left light sensor, relative bearings (80° span, 40° overlap) [paper spans; chosen]."""
+    light_right_span_deg: tuple[float, float] = (-20.0, 60.0)
+    """Right light sensor, relative bearings [paper spans; chosen]."""
+    object_left_span_deg: tuple[float, float] = (-40.0, 5.0)
+    """Left object sensor, relative bearings (45° span, 10° overlap) [paper spans; chosen]."""
+    object_right_span_deg: tuple[float, float] = (-5.0, 40.0)
+    """Right object sensor, relative bearings [paper spans; chosen]."""
+    object_range: float = 50.0
+    """Object sensors fire when a wall lies within this distance in their span [chosen]."""
+
+    gait_cost_v: float = 0.0209
+    """Power used by every gait cycle except gait 7, volts [paper]."""
+    still_gait: int = 7
+    """The gait that costs no power (stand still) [paper]."""
+    low_power_v: float = 4.0
+    """Low-power sensor active below this, volts [paper]."""
+    empty_power_v: float = 2.7
+    """A run ends when power falls below this, volts [paper]."""
+    charged_power_v: float = 5.0
+    """Power after the charging routine, volts [paper]."""
+    backup_gait: int = 15
+    """Gait the charging routine walks after charging (backwards) [paper]."""
+    backup_cycles: int = 4
+    """How many backup gait cycles the charging routine walks [paper]."""
+    start_power_v: float = 4.0
+    """Power at the start of a run, volts [paper]."""
+    max_consecutive_branches: int = 32
+    """Branch instructions without a gait that end a run [paper]."""
+
+    coverage_steps: int = 600
+    """Steps of a coverage run [paper]."""
+    navigation_steps: int = 100
+    """Step limit of a navigation run [chosen]."""
+    coverage_start_x: tuple[float, float] = (350.0, 450.0)
+    """Coverage start poses: x range, units [chosen]."""
+    coverage_start_y: tuple[float, float] = (175.0, 325.0)
+    """Coverage start poses: y range, units [chosen]."""
+    navigation_start_xy: tuple[float, float] = (25.0, 475.0)
+    """Navigation start poses: x and y range, units [chosen]."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class GASettings:
+    """The multi-loop CGA with conditional branching (SPEC §5, §6)."""
+
+    populations: int = 5
+    """Independent populations [paper]."""
+    population_size: int = 256
+    """Individuals per population [paper]."""
+    generations: int = 512
+    """Generations per population (coverage 512 [paper], navigation 1024 [chosen])."""
+    starts_per_generation: int = 10
+    """Start poses drawn anew each generation, shared by the population [paper]."""
+    selection_exponent: float = 1.5
+    """Roulette weight = fitness ** this [paper]."""
+    one_point_probability: float = 0.5
+    """Chance of gene-level one-point crossover (else gene-by-gene) [paper]."""
+    instruction_mutation_rate: float = 1.0 / 600.0
+    """After one-point crossover: chance each instruction is redrawn [paper]."""
+    bit_flip_rate: float = 1.0 / 200.0
+    """After gene-by-gene crossover: chance each bit flips [paper]."""
+    test_starts: int = 100
+    """Fresh start poses for the generational test (Figure 9, navigation report) [paper]."""
+    save_generations: tuple[int, ...] = (0, 1, 32, 64, 128, 256, 384, 512)
+    """Generations whose population and best individual are saved [paper]."""
+    seed: int = 0
+    """Seed of every random draw of the run [chosen]."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def navigation_ga_settings(**overrides: Any) -> GASettings:
+    """GA settings of the navigation stage (SPEC §6): 1024 generations, saves every 128."""
+    base = GASettings(
+        generations=1024, save_generations=(0, 1, 32, 64) + tuple(range(128, 1025, 128))
+    )
+    return dataclasses.replace(base, **overrides)
+
+
+def settings_json(*objs: Any) -> str:
+    """Serialise settings dataclasses as one JSON object keyed by class name."""
+    return json.dumps({type(o).__name__: dataclasses.asdict(o) for o in objs}, indent=2)
+
+
+__all__ = ["WorldSettings", "GASettings", "navigation_ga_settings", "settings_json"]
