@@ -132,4 +132,5 @@ def table_to_json(
             row.update(F_std=float(std[g, 0]), T_std=float(std[g, 1]), dH_std=float(std[g, 2]))
         row["cycles"] = int(cycles)
         rows.append(row)
-    return {"robot": ROBOT_NAME, "gaits": rows, "units": {"F": "cm", "T": "cm", "dH": "deg"}, **meta}
+    units = {"F": "cm", "T": "cm", "dH": "deg"}
+    return {"robot": ROBOT_NAME, "gaits": rows, "units": units, **meta}
