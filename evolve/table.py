@@ -89,12 +89,14 @@ def table_from_json(doc: dict[str, Any], *, name: str = "gait table") -> GaitTab
     for i, row in enumerate(rows):
         try:
             g = int(row["gait"])
+            if not 0 <= g < N_GAITS:
+                raise GaitTableError(f"{name}: row {i} names gait {g}, outside 0-15")
             values[g] = [float(row[k]) for k in ("F", "T", "dH")]
             std[g] = [float(row.get(k + "_std", math.nan)) for k in ("F", "T", "dH")]
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
+        except (KeyError, TypeError, ValueError) as exc:
+            if isinstance(exc, GaitTableError):
+                raise
             raise GaitTableError(f"{name}: row {i} is malformed ({exc!r})") from exc
-        if not 0 <= g < N_GAITS:
-            raise GaitTableError(f"{name}: row {i} names gait {g}, outside 0-15")
         if g in seen:
             raise GaitTableError(f"{name}: gait {g} appears twice")
         seen.add(g)
