@@ -1,0 +1,340 @@
+"""Pure geometry of the table world (SPEC §1, §3): motion, sensors, squares, kill zone, docking.
+
+Frames: arena units (1 unit = 1 cm), origin at the south-west corner, x east, y north; headings
+in degrees in [0, 360), 0 = north (+y), 90 = east, clockwise positive. Bearings relative to
+the heading are in (−180, 180], negative = left.
+
+Two layers:
+- scalar kernels (``move``, ``object_bits``, ``light_bits``, ``square_at``, ``killed``,
+  ``docked``, ...) over a *packed* settings vector ``p`` (``pack_world``). They use only
+  ``math`` and indexing, so the numba kernel compiles these very functions: the interpreter
+  and the kernel share every float formula, operation for operation.
+- public wrappers over ``WorldSettings`` (``apply_gait``, ``light_sensors``, ...).
+
+Square index: square (i, j) with i the column (x) and j the row (y) has index i + grid_n·j.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from evolve.codec import LIGHT_LEFT, LIGHT_RIGHT, OBJECT_LEFT, OBJECT_RIGHT
+from evolve.settings import WorldSettings
+
+DEG2RAD = math.pi / 180.0
+RAD2DEG = 180.0 / math.pi
+DEFAULT_WORLD = WorldSettings()
+"""The SPEC's world, the default of every function here."""
+MAX_SQUARES = 128
+"""The kernel tracks reached squares in two uint64 masks: grid_n² must not exceed this."""
+
+# Layout of the packed settings vector (float64), one named index per WorldSettings value.
+P_ARENA = 0
+P_GRID_N = 1
+P_SQUARE = 2
+P_CONTACT = 3
+P_KILL = 4
+P_STATION_Y = 5
+P_DOCK_X = 6
+P_DOCK_YHW = 7
+P_DOCK_H = 8
+P_DOCK_HTOL = 9
+P_LIGHT_AXIS = 10
+P_LIGHT_HALF = 11
+P_LL_A = 12
+P_LL_B = 13
+P_LR_A = 14
+P_LR_B = 15
+P_OL_A = 16
+P_OL_B = 17
+P_OR_A = 18
+P_OR_B = 19
+P_OBJ_RANGE = 20
+P_COST = 21
+P_STILL = 22
+P_LOW = 23
+P_EMPTY = 24
+P_CHARGED = 25
+P_BACKUP_GAIT = 26
+P_BACKUP_N = 27
+P_MAX_BRANCH = 28
+P_N_LIGHTS = 29
+P_LIGHTS = 30
+"""Light k sits at (p[P_LIGHTS + 2k], p[P_LIGHTS + 2k + 1])."""
+
+
+def pack_world(world: WorldSettings = DEFAULT_WORLD) -> np.ndarray:
+    """Pack ``world`` into the float64 vector the scalar kernels read (read-only)."""
+    return _pack_cached(world)
+
+
+@functools.lru_cache(maxsize=32)
+def _pack_cached(world: WorldSettings) -> np.ndarray:
+    n = int(world.grid_n)
+    if n < 1 or n * n > MAX_SQUARES:
+        raise ValueError(f"grid_n = {n}: need 1 ≤ grid_n² ≤ {MAX_SQUARES}")
+    if not 0 <= world.still_gait < 16 or not 0 <= world.backup_gait < 16:
+        raise ValueError("still_gait and backup_gait must be gaits 0-15")
+    for span in (
+        world.light_left_span_deg,
+        world.light_right_span_deg,
+        world.object_left_span_deg,
+        world.object_right_span_deg,
+    ):
+        if not -180.0 < span[0] <= span[1] <= 180.0:
+            raise ValueError(f"sensor span {span} must satisfy -180 < a <= b <= 180")
+    vals = [0.0] * P_LIGHTS
+    vals[P_ARENA] = world.arena_size
+    vals[P_GRID_N] = n
+    vals[P_SQUARE] = world.square_size
+    vals[P_CONTACT] = world.contact_half_width
+    vals[P_KILL] = world.kill_margin
+    vals[P_STATION_Y] = world.station_y
+    vals[P_DOCK_X] = world.dock_x_min
+    vals[P_DOCK_YHW] = world.dock_y_half_width
+    vals[P_DOCK_H] = world.dock_heading_deg
+    vals[P_DOCK_HTOL] = world.dock_heading_tol_deg
+    vals[P_LIGHT_AXIS] = world.light_axis_deg
+    vals[P_LIGHT_HALF] = world.light_half_angle_deg
+    vals[P_LL_A], vals[P_LL_B] = world.light_left_span_deg
+    vals[P_LR_A], vals[P_LR_B] = world.light_right_span_deg
+    vals[P_OL_A], vals[P_OL_B] = world.object_left_span_deg
+    vals[P_OR_A], vals[P_OR_B] = world.object_right_span_deg
+    vals[P_OBJ_RANGE] = world.object_range
+    vals[P_COST] = world.gait_cost_v
+    vals[P_STILL] = world.still_gait
+    vals[P_LOW] = world.low_power_v
+    vals[P_EMPTY] = world.empty_power_v
+    vals[P_CHARGED] = world.charged_power_v
+    vals[P_BACKUP_GAIT] = world.backup_gait
+    vals[P_BACKUP_N] = world.backup_cycles
+    vals[P_MAX_BRANCH] = world.max_consecutive_branches
+    vals[P_N_LIGHTS] = len(world.lights)
+    for sx, sy in world.lights:
+        vals += [float(sx), float(sy)]
+    arr = np.array(vals, dtype=np.float64)
+    arr.setflags(write=False)
+    return arr
+
+
+@functools.lru_cache(maxsize=32)
+def packed_tuple(world: WorldSettings) -> tuple[float, ...]:
+    """The packed vector as a tuple of Python floats (fast indexing in plain Python)."""
+    return tuple(float(v) for v in pack_world(world))
+
+
+# ---------------------------------------------------------------------------------------
+# Scalar kernels: plain ``math`` so that numba compiles the same code (see module doc).
+# ---------------------------------------------------------------------------------------
+
+
+def wrap360(a):
+    """Angle in degrees wrapped into [0, 360)."""
+    r = math.fmod(a, 360.0)
+    if r < 0.0:
+        r += 360.0
+    if r >= 360.0:
+        r -= 360.0
+    return r
+
+
+def wrap180(a):
+    """Angle in degrees wrapped into (−180, 180]."""
+    return 180.0 - wrap360(180.0 - a)
+
+
+def move(x, y, h, f, t, dh):
+    """One gait cycle (SPEC §1): (F, T) in the frame at the cycle's start, then turn by dH.
+
+    ``x += F·sin h + T·cos h;  y += F·cos h − T·sin h;  h = (h + dH) mod 360``.
+    """
+    r = h * DEG2RAD
+    s = math.sin(r)
+    c = math.cos(r)
+    return x + (f * s + t * c), y + (f * c - t * s), wrap360(h + dh)
+
+
+def _span_reaches(rel, a, b, dist, reach):
+    """Whether a wall at perpendicular ``dist`` whose normal lies at relative bearing ``rel``
+    is within ``reach`` along the direction of span [a, b] closest to that normal."""
+    u = wrap360(rel - a)
+    w = b - a
+    if u <= w:
+        delta = 0.0
+    else:
+        delta = min(u - w, 360.0 - u)
+    if delta >= 90.0:
+        return False
+    return dist <= reach * math.cos(delta * DEG2RAD)
+
+
+def object_bits(x, y, h, p):
+    """Active object-sensor bits (OBJECT_LEFT | OBJECT_RIGHT) at pose (x, y, h), walls only."""
+    reach = p[P_OBJ_RANGE]
+    size = p[P_ARENA]
+    bits = 0
+    for wall in range(4):
+        if wall == 0:  # north wall y = size, outward normal bearing 0
+            dist = size - y
+            normal = 0.0
+        elif wall == 1:  # east wall x = size
+            dist = size - x
+            normal = 90.0
+        elif wall == 2:  # south wall y = 0
+            dist = y
+            normal = 180.0
+        else:  # west wall x = 0
+            dist = x
+            normal = 270.0
+        if dist > reach:
+            continue
+        rel = wrap180(normal - h)
+        if _span_reaches(rel, p[P_OL_A], p[P_OL_B], dist, reach):
+            bits |= OBJECT_LEFT
+        if _span_reaches(rel, p[P_OR_A], p[P_OR_B], dist, reach):
+            bits |= OBJECT_RIGHT
+    return bits
+
+
+def source_lights(x, y, k, p):
+    """Whether light source k lights the point (x, y): the direction from the source to the
+    point lies within the cone of half-angle P_LIGHT_HALF around P_LIGHT_AXIS."""
+    sx = p[P_LIGHTS + 2 * k]
+    sy = p[P_LIGHTS + 2 * k + 1]
+    bearing = math.atan2(x - sx, y - sy) * RAD2DEG
+    return abs(wrap180(bearing - p[P_LIGHT_AXIS])) <= p[P_LIGHT_HALF]
+
+
+def light_bits(x, y, h, p):
+    """Active light-sensor bits (LIGHT_LEFT | LIGHT_RIGHT): a sensor is active when a source
+    that lights the robot lies within its span of relative bearings."""
+    bits = 0
+    for k in range(int(p[P_N_LIGHTS])):
+        if not source_lights(x, y, k, p):
+            continue
+        sx = p[P_LIGHTS + 2 * k]
+        sy = p[P_LIGHTS + 2 * k + 1]
+        rel = wrap180(math.atan2(sx - x, sy - y) * RAD2DEG - h)
+        if p[P_LL_A] <= rel <= p[P_LL_B]:
+            bits |= LIGHT_LEFT
+        if p[P_LR_A] <= rel <= p[P_LR_B]:
+            bits |= LIGHT_RIGHT
+    return bits
+
+
+def square_at(x, y, p):
+    """Index i + grid_n·j of the square whose central contact zone holds (x, y), else −1."""
+    size = p[P_SQUARE]
+    n = int(p[P_GRID_N])
+    i = int(math.floor(x / size))
+    j = int(math.floor(y / size))
+    if i < 0 or i >= n or j < 0 or j >= n:
+        return -1
+    half = p[P_CONTACT]
+    if abs(x - (size * i + 0.5 * size)) <= half and abs(y - (size * j + 0.5 * size)) <= half:
+        return i + n * j
+    return -1
+
+
+def square_is_inner(index, p):
+    """Whether square ``index`` is an inner square (1 ≤ i, j ≤ grid_n − 2)."""
+    n = int(p[P_GRID_N])
+    i = index % n
+    j = index // n
+    return 1 <= i <= n - 2 and 1 <= j <= n - 2
+
+
+def killed(x, y, p):
+    """Whether (x, y) lies in the kill zone (closer than P_KILL to a wall)."""
+    m = p[P_KILL]
+    size = p[P_ARENA]
+    return x < m or x > size - m or y < m or y > size - m
+
+
+def docked(x, y, h, p):
+    """Docking rule: x ≥ dock_x_min, |y − station_y| ≤ half-width, heading within tolerance."""
+    return (
+        x >= p[P_DOCK_X]
+        and abs(y - p[P_STATION_Y]) <= p[P_DOCK_YHW]
+        and abs(wrap180(h - p[P_DOCK_H])) <= p[P_DOCK_HTOL]
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Public wrappers over WorldSettings.
+# ---------------------------------------------------------------------------------------
+
+
+def apply_gait(
+    x: float, y: float, h: float, F: float, T: float, dH: float
+) -> tuple[float, float, float]:
+    """Pose (x, y cm; h deg) after one gait cycle (F, T cm; dH deg) — SPEC §1."""
+    return move(float(x), float(y), float(h), float(F), float(T), float(dH))
+
+
+def light_sensors(
+    x: float, y: float, h: float, world: WorldSettings = DEFAULT_WORLD
+) -> tuple[bool, bool]:
+    """(left, right) light sensors at pose (x, y cm; h deg)."""
+    bits = light_bits(float(x), float(y), float(h), packed_tuple(world))
+    return bool(bits & LIGHT_LEFT), bool(bits & LIGHT_RIGHT)
+
+
+def object_sensors(
+    x: float, y: float, h: float, world: WorldSettings = DEFAULT_WORLD
+) -> tuple[bool, bool]:
+    """(left, right) object sensors at pose (x, y cm; h deg): walls within range in span."""
+    bits = object_bits(float(x), float(y), float(h), packed_tuple(world))
+    return bool(bits & OBJECT_LEFT), bool(bits & OBJECT_RIGHT)
+
+
+def square_index(x: float, y: float, world: WorldSettings = DEFAULT_WORLD) -> int:
+    """Index i + grid_n·j (i column/x, j row/y) of the square reached at (x, y), else −1."""
+    return int(square_at(float(x), float(y), packed_tuple(world)))
+
+
+def is_inner(index: int, world: WorldSettings = DEFAULT_WORLD) -> bool:
+    """Whether square ``index`` is one of the inner squares (64 on the 10 × 10 grid)."""
+    return bool(square_is_inner(int(index), packed_tuple(world)))
+
+
+def in_kill_zone(x: float, y: float, world: WorldSettings = DEFAULT_WORLD) -> bool:
+    """Whether a robot centred at (x, y) is in the kill zone."""
+    return bool(killed(float(x), float(y), packed_tuple(world)))
+
+
+def is_docked(x: float, y: float, h: float, world: WorldSettings = DEFAULT_WORLD) -> bool:
+    """Whether pose (x, y cm; h deg) satisfies the docking rule."""
+    return bool(docked(float(x), float(y), float(h), packed_tuple(world)))
+
+
+def lit(x: float, y: float, world: WorldSettings = DEFAULT_WORLD) -> tuple[bool, ...]:
+    """For each light source, whether it lights (x, y). The dark area is where none does."""
+    p = packed_tuple(world)
+    return tuple(bool(source_lights(float(x), float(y), k, p)) for k in range(len(world.lights)))
+
+
+__all__ = [
+    "apply_gait",
+    "docked",
+    "in_kill_zone",
+    "is_docked",
+    "is_inner",
+    "killed",
+    "light_bits",
+    "light_sensors",
+    "lit",
+    "move",
+    "object_bits",
+    "object_sensors",
+    "pack_world",
+    "packed_tuple",
+    "square_at",
+    "square_index",
+    "square_is_inner",
+    "wrap180",
+    "wrap360",
+]
