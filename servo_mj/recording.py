@@ -46,6 +46,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from evolve import geometry
 from evolve.settings import WorldSettings
 
 try:  # H2's codec owns the sensor bits; the values below are the same (SPEC §4).
@@ -123,29 +124,6 @@ def square_centre(index: int, world: WorldSettings) -> tuple[float, float]:
     """Centre (x, y cm) of square ``index = i + grid_n * j`` (i column along x, j row along y)."""
     i, j = index % world.grid_n, index // world.grid_n
     return (world.square_size * (i + 0.5), world.square_size * (j + 0.5))
-
-
-def square_of(x_cm: float, y_cm: float, world: WorldSettings) -> int | None:
-    """Index of the square whose contact zone holds (x, y), or None (SPEC §3)."""
-    i, j = int(x_cm // world.square_size), int(y_cm // world.square_size)
-    if not (0 <= i < world.grid_n and 0 <= j < world.grid_n):
-        return None
-    cx, cy = square_centre(i + world.grid_n * j, world)
-    hw = world.contact_half_width
-    return i + world.grid_n * j if abs(x_cm - cx) <= hw and abs(y_cm - cy) <= hw else None
-
-
-def is_lit(x_cm: float, y_cm: float, world: WorldSettings) -> bool:
-    """True if some light source lights (x, y) by the SPEC's cone rule (SPEC §3)."""
-    for sx, sy in world.lights:
-        dx, dy = x_cm - sx, y_cm - sy
-        if dx == 0.0 and dy == 0.0:
-            return True
-        bearing = math.degrees(math.atan2(dx, dy)) % 360.0
-        off = (bearing - world.light_axis_deg + 180.0) % 360.0 - 180.0
-        if abs(off) <= world.light_half_angle_deg:
-            return True
-    return False
 
 
 def _clip(poly: list[tuple[float, float]], a: float, b: float, c: float) -> list:
@@ -553,7 +531,8 @@ class Recording:
         new = getattr(event, "new_square", None)
         idx: int | None
         if isinstance(new, bool) or new is None:
-            idx = square_of(x, y, w) if new else None
+            idx = geometry.square_index(x, y, w) if new else None
+            idx = None if idx is not None and idx < 0 else idx
         else:
             idx = int(new) if int(new) >= 0 else None
         if idx is not None and idx not in buf["reached"]:
@@ -813,7 +792,5 @@ __all__ = [
     "arena_to_m",
     "dark_polygons",
     "heading_to_yaw_rad",
-    "is_lit",
     "square_centre",
-    "square_of",
 ]
