@@ -2,3 +2,7 @@
 
 Pure numerics: nothing here imports MuJoCo. See ``../shared/SPEC.md`` for the contract.
 """
+
+from evolve.evaluate import Evaluation, evaluate
+
+__all__ = ["Evaluation", "evaluate"]

@@ -20,6 +20,7 @@ import functools
 import math
 
 import numpy as np
+from numba.extending import register_jitable
 
 from evolve.codec import LIGHT_LEFT, LIGHT_RIGHT, OBJECT_LEFT, OBJECT_RIGHT
 from evolve.settings import WorldSettings
@@ -127,25 +128,27 @@ def packed_tuple(world: WorldSettings) -> tuple[float, ...]:
 
 
 # ---------------------------------------------------------------------------------------
-# Scalar kernels: plain ``math`` so that numba compiles the same code (see module doc).
+# Scalar kernels: plain ``math``; ``register_jitable`` leaves them plain Python when called
+# from Python and lets the numba kernel compile the very same code.
 # ---------------------------------------------------------------------------------------
 
 
+@register_jitable
 def wrap360(a):
     """Angle in degrees wrapped into [0, 360)."""
-    r = math.fmod(a, 360.0)
-    if r < 0.0:
-        r += 360.0
+    r = a % 360.0  # Python float modulo (numba implements the same), in [0, 360]
     if r >= 360.0:
         r -= 360.0
     return r
 
 
+@register_jitable
 def wrap180(a):
     """Angle in degrees wrapped into (−180, 180]."""
     return 180.0 - wrap360(180.0 - a)
 
 
+@register_jitable
 def move(x, y, h, f, t, dh):
     """One gait cycle (SPEC §1): (F, T) in the frame at the cycle's start, then turn by dH.
 
@@ -157,6 +160,7 @@ def move(x, y, h, f, t, dh):
     return x + (f * s + t * c), y + (f * c - t * s), wrap360(h + dh)
 
 
+@register_jitable
 def _span_reaches(rel, a, b, dist, reach):
     """Whether a wall at perpendicular ``dist`` whose normal lies at relative bearing ``rel``
     is within ``reach`` along the direction of span [a, b] closest to that normal."""
@@ -171,6 +175,7 @@ def _span_reaches(rel, a, b, dist, reach):
     return dist <= reach * math.cos(delta * DEG2RAD)
 
 
+@register_jitable
 def object_bits(x, y, h, p):
     """Active object-sensor bits (OBJECT_LEFT | OBJECT_RIGHT) at pose (x, y, h), walls only."""
     reach = p[P_OBJ_RANGE]
@@ -199,6 +204,7 @@ def object_bits(x, y, h, p):
     return bits
 
 
+@register_jitable
 def source_lights(x, y, k, p):
     """Whether light source k lights the point (x, y): the direction from the source to the
     point lies within the cone of half-angle P_LIGHT_HALF around P_LIGHT_AXIS."""
@@ -208,6 +214,7 @@ def source_lights(x, y, k, p):
     return abs(wrap180(bearing - p[P_LIGHT_AXIS])) <= p[P_LIGHT_HALF]
 
 
+@register_jitable
 def light_bits(x, y, h, p):
     """Active light-sensor bits (LIGHT_LEFT | LIGHT_RIGHT): a sensor is active when a source
     that lights the robot lies within its span of relative bearings."""
@@ -225,6 +232,7 @@ def light_bits(x, y, h, p):
     return bits
 
 
+@register_jitable
 def square_at(x, y, p):
     """Index i + grid_n·j of the square whose central contact zone holds (x, y), else −1."""
     size = p[P_SQUARE]
@@ -239,6 +247,7 @@ def square_at(x, y, p):
     return -1
 
 
+@register_jitable
 def square_is_inner(index, p):
     """Whether square ``index`` is an inner square (1 ≤ i, j ≤ grid_n − 2)."""
     n = int(p[P_GRID_N])
@@ -247,6 +256,7 @@ def square_is_inner(index, p):
     return 1 <= i <= n - 2 and 1 <= j <= n - 2
 
 
+@register_jitable
 def killed(x, y, p):
     """Whether (x, y) lies in the kill zone (closer than P_KILL to a wall)."""
     m = p[P_KILL]
@@ -254,6 +264,7 @@ def killed(x, y, p):
     return x < m or x > size - m or y < m or y > size - m
 
 
+@register_jitable
 def docked(x, y, h, p):
     """Docking rule: x ≥ dock_x_min, |y − station_y| ≤ half-width, heading within tolerance."""
     return (
