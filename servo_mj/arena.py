@@ -1,0 +1,260 @@
+"""The colony arena in MuJoCo, composed around the robot with ``dm_control.mjcf`` (SPEC §3).
+
+World frame: metres, x east, y north, z up, origin at the arena's south-west corner (so arena
+unit u sits at u / 100 m). The arena holds a floor, four walls whose inner faces are the arena
+edges, the power-station block (``station_width`` wide, protruding ``station_depth_m`` from the
+east wall, centred at ``station_y``), and the two light sources (a MuJoCo ``light`` each, with
+a non-colliding marker above the wall tops so the rangefinder rays never see it).
+
+The robot MJCF is attached through an attachment frame that carries the free joint: the
+robot's own free joint is removed and the torso's placement moved onto the frame, so that the
+frame's free-joint qpos means what the robot's did (keyframes stay valid). The object-sensor
+rangefinder fans (``servo_mj.sensors``) are added to the torso before attaching.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+from dm_control import mjcf
+
+from evolve.settings import WorldSettings
+from servo_mj import sensors as _sensors
+from servo_mj.sensors import CM_PER_M, ObjectSensorIndex
+
+
+@dataclass(frozen=True)
+class ArenaSettings:
+    """Geometry of the MuJoCo colony and of the physics object sensors [chosen].
+
+    Lengths in metres unless the name says otherwise; horizontal layout (arena size, station
+    position and width, light positions, sensor spans and range) comes from ``WorldSettings``.
+    """
+
+    wall_height_m: float = 0.30
+    """Wall height; well above the rangefinder sites so a slightly tilted ray still meets it."""
+    wall_thickness_m: float = 0.05
+    """Wall thickness, built outwards from the arena edge."""
+    station_depth_m: float = 0.20
+    """How far the station block protrudes from the east wall (front face x = 4.80 m)."""
+    station_height_m: float = 0.30
+    """Height of the station block."""
+    light_height_m: float = 0.40
+    """Height of the light sources and their markers (above the walls and the ray sites)."""
+    light_marker_radius_m: float = 0.02
+    """Radius of the visual (non-colliding) light markers."""
+    floor_margin_m: float = 0.5
+    """How far the floor plane extends beyond the arena on each side."""
+    rays_per_span: int = 10
+    """Rangefinder rays per object-sensor span, both span ends included."""
+    sensor_height_m: float = 0.06
+    """Height of the rangefinder sites above the torso frame origin: above the servos and the
+    lifted legs (≤ 0.045 m), 0.12 m above the floor, so a ray must tilt ~13° to meet the floor
+    within 0.5 m."""
+    floor_friction: tuple[float, float, float] = (1.0, 0.005, 0.0001)
+    """Floor friction (slide, spin, roll): MuJoCo's default, as on the calibration floor of
+    ``models/servobot/scene.xml``, so gaits behave as they were calibrated."""
+    timestep_s: float = 0.002
+    """Physics step, as in ``models/servobot/scene.xml`` (the robot MJCF carries no option)."""
+    integrator: str = "implicitfast"
+    """MuJoCo integrator, as in ``models/servobot/scene.xml``."""
+    colours: dict[str, tuple[float, float, float, float]] = field(
+        default_factory=lambda: {
+            "floor": (0.82, 0.80, 0.75, 1.0),
+            "wall": (0.55, 0.45, 0.35, 1.0),
+            "station": (0.85, 0.65, 0.10, 1.0),
+            "light": (1.0, 1.0, 0.6, 1.0),
+        }
+    )
+    """RGBA of the arena parts (visual only)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """Where the robot model is and how to find its torso and forward axis."""
+
+    xml: Path
+    """Robot MJCF file (the robot alone, with its own free joint)."""
+    torso_body: str
+    """Name of the torso body in the robot MJCF."""
+    free_joint: str | None
+    """Name of the robot's free joint (removed on attach); None = the torso's first joint."""
+    forward_axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    """The robot's forward axis in the torso frame."""
+
+
+def default_robot() -> RobotSpec:
+    """The ServoBot of ``servo_mj.constants``."""
+    from servo_mj import constants as c
+
+    # constants: "Robot body frame: +x forward, +y left, +z up".
+    return RobotSpec(xml=Path(c.ROBOT_XML), torso_body=c.TORSO, free_joint=c.FREE_JOINT)
+
+
+def _m(units: float) -> float:
+    return float(units) / CM_PER_M
+
+
+def add_arena(root: mjcf.RootElement, world: WorldSettings, arena: ArenaSettings) -> None:
+    """Add floor, walls, station block and lights to ``root``'s worldbody."""
+    size = _m(world.arena_size)
+    half = size / 2.0
+    t, h = arena.wall_thickness_m, arena.wall_height_m
+    col = arena.colours
+    wb = root.worldbody
+    root.asset.add(
+        "texture", name="grid", type="2d", builtin="checker", width=512, height=512,
+        rgb1=col["floor"][:3], rgb2=[c * 0.92 for c in col["floor"][:3]],
+    )  # fmt: skip
+    cells = world.grid_n
+    root.asset.add("material", name="grid", texture="grid", texrepeat=[cells / 2, cells / 2])
+    wb.add(
+        "geom", name="floor", type="plane", material="grid",
+        pos=[half, half, 0.0], size=[half + arena.floor_margin_m] * 2 + [0.05],
+        friction=list(arena.floor_friction),
+    )  # fmt: skip
+    walls = {
+        "wall_west": ([-t / 2, half, h / 2], [t / 2, half + t, h / 2]),
+        "wall_east": ([size + t / 2, half, h / 2], [t / 2, half + t, h / 2]),
+        "wall_south": ([half, -t / 2, h / 2], [half + t, t / 2, h / 2]),
+        "wall_north": ([half, size + t / 2, h / 2], [half + t, t / 2, h / 2]),
+    }
+    for name, (pos, hs) in walls.items():
+        wb.add("geom", name=name, type="box", pos=pos, size=hs, rgba=col["wall"])
+    d, sh = arena.station_depth_m, arena.station_height_m
+    wb.add(
+        "geom", name="station", type="box", rgba=col["station"],
+        pos=[size - d / 2, _m(world.station_y), sh / 2],
+        size=[d / 2, _m(world.station_width) / 2, sh / 2],
+    )  # fmt: skip
+    axis = np.deg2rad(world.light_axis_deg)
+    direction = [np.sin(axis), np.cos(axis), -0.3]
+    for i, (lx, ly) in enumerate(world.lights):
+        pos = [_m(lx), _m(ly), arena.light_height_m]
+        wb.add(
+            "light", name=f"light_{i}", pos=pos, dir=direction, directional="false",
+            cutoff=world.light_half_angle_deg, diffuse=[0.4, 0.4, 0.3],
+        )  # fmt: skip
+        wb.add("site", name=f"light_{i}", pos=pos, size=[arena.light_marker_radius_m])
+        wb.add(
+            "geom", name=f"light_marker_{i}", type="sphere", pos=pos,
+            size=[arena.light_marker_radius_m], rgba=col["light"], contype=0, conaffinity=0,
+        )  # fmt: skip
+
+
+def _detach_free_joint(robot: mjcf.RootElement, spec: RobotSpec) -> mjcf.Element:
+    """Remove the robot's free joint; return the body that carried it (the torso)."""
+    torso = robot.find("body", spec.torso_body)
+    if torso is None:
+        raise ValueError(f"{spec.xml}: no body named {spec.torso_body!r}")
+    joints = [j for j in robot.find_all("joint") if j.tag == "freejoint" or j.type == "free"]
+    if spec.free_joint is not None:
+        joints = [j for j in joints if j.name == spec.free_joint] or joints
+    for j in joints:
+        if j.parent is not torso:
+            raise ValueError(f"{spec.xml}: free joint {j.name!r} is not on {spec.torso_body!r}")
+        j.remove()
+    return torso
+
+
+def build_arena(
+    world: WorldSettings | None = None,
+    arena: ArenaSettings | None = None,
+    robot: RobotSpec | None = None,
+) -> mjcf.RootElement:
+    """Compose the colony arena and the robot (free joint on the attachment frame)."""
+    world = world or WorldSettings()
+    arena = arena or ArenaSettings()
+    spec = robot or default_robot()
+    root = mjcf.RootElement(model="colony")
+    root.option.timestep = arena.timestep_s
+    root.option.integrator = arena.integrator
+    add_arena(root, world, arena)
+    bot = mjcf.from_path(str(spec.xml))
+    torso = _detach_free_joint(bot, spec)
+    _sensors.add_object_sensors(
+        bot, spec.torso_body, world=world, n_rays=arena.rays_per_span,
+        height_m=arena.sensor_height_m, forward=spec.forward_axis,
+    )  # fmt: skip
+    # Move the torso's placement onto the frame, so the frame's free joint is the torso's.
+    pos = np.zeros(3) if torso.pos is None else np.asarray(torso.pos, dtype=float)
+    quat = None if torso.quat is None else np.asarray(torso.quat, dtype=float)
+    torso.pos = None
+    torso.quat = None
+    frame = root.attach(bot)
+    frame.pos = pos
+    if quat is not None:
+        frame.quat = quat
+    frame.add("freejoint")
+    return root
+
+
+@dataclass
+class ArenaModel:
+    """A compiled colony: MuJoCo model and data, the robot's name prefix, sensor indices."""
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    prefix: str
+    object_index: ObjectSensorIndex
+    world: WorldSettings
+    arena: ArenaSettings
+    xml: str
+
+
+def compile_arena(
+    world: WorldSettings | None = None,
+    arena: ArenaSettings | None = None,
+    robot: RobotSpec | None = None,
+) -> ArenaModel:
+    """Build and compile the colony; returns model, data and the robot's prefix."""
+    world = world or WorldSettings()
+    arena = arena or ArenaSettings()
+    root = build_arena(world, arena, robot)
+    xml = root.to_xml_string()
+    model = mujoco.MjModel.from_xml_string(xml, root.get_assets())
+    data = mujoco.MjData(model)
+    attached = root.worldbody.find_all("body")
+    prefix = _robot_prefix(root, attached)
+    mujoco.mj_forward(model, data)
+    index = ObjectSensorIndex.from_model(model, prefix, arena.rays_per_span)
+    return ArenaModel(model, data, prefix, index, world, arena, xml)
+
+
+def _robot_prefix(root: mjcf.RootElement, bodies: list) -> str:
+    """The name prefix that ``attach`` gave the robot (e.g. ``"servobot/"``)."""
+    for b in root.worldbody.all_children():
+        if b.tag == "body":
+            return b.full_identifier
+    raise ValueError("composed arena holds no robot body")
+
+
+def warnings_raised(data: mujoco.MjData) -> dict[str, int]:
+    """MuJoCo warnings counted so far, by name (empty = none)."""
+    out = {}
+    for name, w in mujoco.mjtWarning.__members__.items():
+        if name == "mjNWARNING":
+            continue
+        n = int(data.warning[int(w)].number)
+        if n:
+            out[name] = n
+    return out
+
+
+__all__ = [
+    "ArenaModel",
+    "ArenaSettings",
+    "RobotSpec",
+    "add_arena",
+    "build_arena",
+    "compile_arena",
+    "default_robot",
+    "warnings_raised",
+]

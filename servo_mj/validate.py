@@ -1,0 +1,464 @@
+"""Validation of an evolved controller: each start pose in the table world and in physics.
+
+``validate(bits, starts, ...)`` runs the 16-gene chromosome with the reference interpreter
+(``evolve.interpreter.run``, coverage mode, SPEC §5: 4.0 V, gene 0, 600 steps) from every
+start pose twice — in the table world (``evolve.world.TableWorld``) and in the MuJoCo colony
+(``servo_mj.physics_world.PhysicsWorld``) — and returns a report::
+
+    {"runs": [{"index", "start": {"x", "y", "h"},
+               "table":   {"squares", "inner_squares", "docks", "steps", "end": {"code", "name"},
+                           "final_pose", "wall_s"},
+               "physics": {... same ...} | None,
+               "error":   None | "PhysicsError: ...",
+               "physics_partial": {"steps", "squares", "pose"} (only with an error)}, ...],
+     "summary": {...}, "settings": {...}, "chromosome": "...", "table": {...}}
+
+The summary gives, per world, mean squares and inner squares, inner % of the 64 inner squares,
+docks and docking success (share of runs with at least one dock), end reasons, and the
+table-vs-physics gap in percentage points over the runs whose physics finished. Runs are
+independent and go to an executor (``servo_mj.pool``); a run whose physics blows up keeps
+its table record and an ``error``, and the other runs are unaffected.
+
+With ``out_dir``: ``report.json``, ``report.md`` and ``tracks.npz`` (per run ``table_{k}`` and
+``physics_{k}``: (steps + 1, 3) poses x, y cm, heading deg) are written atomically; with
+``rrd=True`` each run also writes ``run{k}.rrd`` (``servo_mj.recording``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evolve import geometry
+from evolve.codec import FULL_GENES, check_bits, format_chromosome
+from evolve.interpreter import END_DOCKED, END_NAMES, run
+from evolve.io import atomic_write, atomic_write_json, atomic_write_text
+from evolve.settings import WorldSettings
+from evolve.table import validate_table
+from evolve.world import TableWorld
+from servo_mj.arena import ArenaSettings
+from servo_mj.pool import Executor, Failed, make_executor
+
+MODE = "coverage"
+"""Validation runs the full controller in coverage mode (SPEC §5)."""
+
+
+class ValidationError(ValueError):
+    """Bad input to ``validate``: the message names the problem."""
+
+
+@dataclass(frozen=True)
+class StartJob:
+    """Everything one worker needs for one start pose (picklable plain data)."""
+
+    index: int
+    bits: np.ndarray
+    start: tuple[float, float, float]
+    table: np.ndarray
+    world: WorldSettings
+    arena: ArenaSettings
+    physics: Any
+    max_steps: int | None
+    rrd_path: str | None
+
+
+def inner_square_count(world: WorldSettings) -> int:
+    """Number of inner squares (64 on the 10 × 10 grid)."""
+    return (world.grid_n - 2) ** 2
+
+
+def check_start(start: Any, world: WorldSettings, *, name: str = "start") -> tuple[float, ...]:
+    """Return a start pose as (x, y, h) floats, or raise ``ValidationError`` naming the problem."""
+    try:
+        x, y, h = (float(v) for v in start)
+    except (TypeError, ValueError) as exc:
+        msg = f"{name}: a start pose is three numbers X Y H, got {start!r}"
+        raise ValidationError(msg) from exc
+    if not all(np.isfinite([x, y, h])):
+        raise ValidationError(f"{name}: start pose ({x}, {y}, {h}) is not finite")
+    size = world.arena_size
+    if not (0.0 <= x <= size and 0.0 <= y <= size):
+        raise ValidationError(
+            f"{name}: start ({x:g}, {y:g}) lies outside the {size:g} x {size:g} arena"
+        )
+    if geometry.in_kill_zone(x, y, world):
+        raise ValidationError(
+            f"{name}: start ({x:g}, {y:g}) lies in the kill zone "
+            f"(within {world.kill_margin:g} units of a wall)"
+        )
+    return x, y, h % 360.0
+
+
+def check_chromosome(bits: Any) -> np.ndarray:
+    """A (16, 30) chromosome as uint8, or ``ValidationError`` (an 8-gene section is refused)."""
+    try:
+        arr = check_bits(bits)
+    except ValueError as exc:
+        raise ValidationError(str(exc)) from exc
+    if arr.shape[0] != FULL_GENES:
+        raise ValidationError(
+            f"validation needs a full 16-gene chromosome (coverage genes 0-7 + navigation "
+            f"genes 8-15), got {arr.shape[0]} genes"
+        )
+    return arr
+
+
+def _record(res: Any, wall_s: float) -> dict[str, Any]:
+    return {
+        "squares": int(res.squares),
+        "inner_squares": int(res.inner_squares),
+        "docks": int(res.docks),
+        "steps": int(res.steps),
+        "end": {"code": int(res.end), "name": END_NAMES[int(res.end)]},
+        "final_pose": [round(float(v), 4) for v in res.final_pose],
+        "wall_s": round(wall_s, 4),
+    }
+
+
+def run_start(job: StartJob) -> dict[str, Any]:
+    """Run one start pose in both worlds (worker function; catches physics failures)."""
+    from servo_mj.physics_world import PhysicsWorld
+
+    x, y, h = job.start
+    out: dict[str, Any] = {
+        "index": job.index,
+        "start": {"x": x, "y": y, "h": h},
+        "table": None,
+        "physics": None,
+        "error": None,
+    }
+    rec = None
+    if job.rrd_path is not None:
+        from servo_mj.recording import Recording
+
+        rec = Recording(job.rrd_path, app_id="servobot-validate")
+        rec.log_arena(job.world)
+    tracks: dict[str, np.ndarray] = {}
+    try:
+        t0 = time.perf_counter()
+        table_world = TableWorld(job.table, x, y, h, job.world)
+        on_table = None if rec is None else (lambda e: rec.log_event(e, world_name="table"))
+        res = run(
+            job.bits, table_world, mode=MODE, settings=job.world,
+            max_steps=job.max_steps, on_event=on_table,
+        )  # fmt: skip
+        out["table"] = _record(res, time.perf_counter() - t0)
+        tracks["table"] = res.track
+
+        last: dict[str, Any] = {"steps": 0, "squares": 0, "pose": [x, y, h]}
+        t0 = time.perf_counter()
+        try:
+            pw = PhysicsWorld(
+                x, y, h, world=job.world, arena=job.arena, physics=job.physics,
+                on_frame=None if rec is None else _state_logger(rec),
+            )  # fmt: skip
+            if rec is not None:
+                rec.log_robot_model(pw.model, prefix=pw.prefix)
+
+            def on_physics(e: Any) -> None:
+                last.update(steps=e.step, squares=e.squares, pose=[float(v) for v in e.pose])
+                if rec is not None:
+                    rec.log_event(e, world_name="physics", t_s=pw.t_s)
+
+            res = run(
+                job.bits, pw, mode=MODE, settings=job.world,
+                max_steps=job.max_steps, on_event=on_physics,
+            )  # fmt: skip
+            out["physics"] = _record(res, time.perf_counter() - t0)
+            tracks["physics"] = res.track
+        except Exception as exc:  # noqa: BLE001 - a physics failure is this run's record
+            out["error"] = f"{type(exc).__name__}: {exc}"
+            out["physics_partial"] = dict(last, wall_s=round(time.perf_counter() - t0, 4))
+    finally:
+        if rec is not None:
+            rec.close()
+    out["tracks"] = tracks
+    return out
+
+
+def _state_logger(rec: Any) -> Callable[[Any], None]:
+    def log(frame: Any) -> None:
+        rec.log_robot_state(frame.data, t_s=frame.t_s, prefix=frame.prefix)
+
+    return log
+
+
+def _world_summary(recs: list[dict[str, Any]], n_inner: int) -> dict[str, Any]:
+    if not recs:
+        return {"runs": 0}
+    inner = np.array([r["inner_squares"] for r in recs], dtype=float)
+    ends: dict[str, int] = {}
+    for r in recs:
+        ends[r["end"]["name"]] = ends.get(r["end"]["name"], 0) + 1
+    return {
+        "runs": len(recs),
+        "mean_squares": float(np.mean([r["squares"] for r in recs])),
+        "mean_inner_squares": float(inner.mean()),
+        "inner_pct": float(100.0 * inner.mean() / n_inner),
+        "mean_steps": float(np.mean([r["steps"] for r in recs])),
+        "docks_total": int(sum(r["docks"] for r in recs)),
+        "dock_success": float(np.mean([r["docks"] > 0 for r in recs])),
+        "docked_end": int(sum(r["end"]["code"] == END_DOCKED for r in recs)),
+        "ends": ends,
+        "mean_wall_s": float(np.mean([r["wall_s"] for r in recs])),
+    }
+
+
+def summarise(runs: list[dict[str, Any]], world: WorldSettings, wall_s: float) -> dict[str, Any]:
+    """Summary of per-run records: per world, and the gap over runs whose physics finished."""
+    n_inner = inner_square_count(world)
+    table = [r["table"] for r in runs if r.get("table")]
+    paired = [r for r in runs if r.get("table") and r.get("physics")]
+    t_pair = _world_summary([r["table"] for r in paired], n_inner)
+    p_pair = _world_summary([r["physics"] for r in paired], n_inner)
+    gap: dict[str, Any] = {"runs": len(paired)}
+    if paired:
+        gap.update(
+            inner_pct_pp=t_pair["inner_pct"] - p_pair["inner_pct"],
+            squares=t_pair["mean_squares"] - p_pair["mean_squares"],
+            dock_success_pp=100.0 * (t_pair["dock_success"] - p_pair["dock_success"]),
+            mean_abs_inner_diff=float(
+                np.mean(
+                    [
+                        abs(r["table"]["inner_squares"] - r["physics"]["inner_squares"])
+                        for r in paired
+                    ]
+                )
+            ),
+        )
+    return {
+        "starts": len(runs),
+        "physics_ok": len(paired),
+        "physics_errors": sum(1 for r in runs if r.get("error")),
+        "inner_squares_total": n_inner,
+        "table": _world_summary(table, n_inner),
+        "table_paired": t_pair,
+        "physics": p_pair,
+        "gap": gap,
+        "wall_s": round(wall_s, 3),
+    }
+
+
+def _jsonable(obj: Any) -> Any:
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return _jsonable(dataclasses.asdict(obj))
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def validate(
+    bits: np.ndarray,
+    starts: np.ndarray,
+    *,
+    table: Any,
+    world: WorldSettings | None = None,
+    physics: Any = None,
+    arena: ArenaSettings | None = None,
+    out_dir: str | Path | None = None,
+    rrd: bool = False,
+    workers: int | None = None,
+    executor: Executor | None = None,
+    max_steps: int | None = None,
+    on_run: Callable[[dict[str, Any]], None] | None = None,
+    meta: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Run ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the table and physics.
+
+    ``table`` is a (16, 3) array or a ``GaitTable``; ``physics`` a ``PhysicsSettings`` (None =
+    default). ``workers``: 1 = serial, None = one process per core (ignored when ``executor``
+    is given). ``on_run(record)`` is called as each run finishes (progress). Returns the report
+    (and writes it into ``out_dir`` when given). Raises ``ValidationError`` on bad input.
+    """
+    world = world or WorldSettings()
+    arena = arena or ArenaSettings()
+    arr = check_chromosome(bits)
+    values = validate_table(getattr(table, "values", table))
+    starts_arr = np.asarray(starts, dtype=float)
+    if starts_arr.ndim != 2 or starts_arr.shape[1] != 3 or len(starts_arr) == 0:
+        raise ValidationError(f"starts must be an (N, 3) array of x, y, h, got {starts_arr.shape}")
+    poses = [check_start(s, world, name=f"start {k}") for k, s in enumerate(starts_arr)]
+    if max_steps is not None and max_steps < 0:
+        raise ValidationError(f"max_steps must be >= 0, got {max_steps}")
+    out = None if out_dir is None else Path(out_dir)
+    jobs = [
+        StartJob(
+            index=k,
+            bits=arr,
+            start=p,
+            table=values,
+            world=world,
+            arena=arena,
+            physics=physics,
+            max_steps=max_steps,
+            rrd_path=str(out / f"run{k}.rrd") if (rrd and out is not None) else None,
+        )  # fmt: skip
+        for k, p in enumerate(poses)
+    ]
+    ex = executor or make_executor(workers)
+    t0 = time.perf_counter()
+    runs: list[dict[str, Any] | None] = [None] * len(jobs)
+    for k, outcome in ex.imap(run_start, jobs):
+        if isinstance(outcome, Failed):
+            x, y, h = poses[k]
+            rec: dict[str, Any] = {
+                "index": k, "start": {"x": x, "y": y, "h": h}, "table": None,
+                "physics": None, "error": outcome.message, "tracks": {},
+            }  # fmt: skip
+        else:
+            rec = outcome.value
+        runs[k] = rec
+        if on_run is not None:
+            on_run(rec)
+    wall = time.perf_counter() - t0
+    done = [r for r in runs if r is not None]
+    tracks = {f"{w}_{r['index']}": t for r in done for w, t in r.pop("tracks", {}).items()}
+    report = {
+        "chromosome": format_chromosome(arr),
+        "table": {
+            "source": getattr(table, "source", "array"),
+            "values": values.tolist(),
+            "meta": _jsonable(getattr(table, "meta", {})),
+        },
+        "settings": {
+            "WorldSettings": _jsonable(world),
+            "ArenaSettings": _jsonable(arena),
+            "PhysicsSettings": _jsonable(physics) if physics is not None else "default",
+            "max_steps": max_steps if max_steps is not None else world.coverage_steps,
+            "mode": MODE,
+        },
+        "meta": _jsonable(meta or {}),
+        "runs": done,
+        "summary": summarise(done, world, wall),
+    }
+    if out is not None:
+        write_report(out, report, tracks)
+    return report
+
+
+def write_report(out: Path, report: dict[str, Any], tracks: dict[str, np.ndarray]) -> None:
+    """Write ``report.json``, ``report.md`` and ``tracks.npz`` atomically into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+
+    def write_npz(p: Path) -> None:
+        buf = io.BytesIO()
+        np.savez_compressed(buf, **tracks)
+        p.write_bytes(buf.getvalue())
+
+    atomic_write(out / "tracks.npz", write_npz)
+    atomic_write_json(out / "report.json", report)
+    atomic_write_text(out / "report.md", report_markdown(report))
+
+
+def _cell(rec: dict[str, Any] | None) -> str:
+    if rec is None:
+        return "— | — | — | — | —"
+    return (
+        f"{rec['squares']} | {rec['inner_squares']} | {rec['docks']} | {rec['steps']} | "
+        f"{rec['end']['name']}"
+    )
+
+
+def run_rows(report: dict[str, Any]) -> list[str]:
+    """The per-start Markdown table (also printed by the CLI)."""
+    rows = [
+        "| # | start x, y, h | table sq | inner | docks | steps | end "
+        "| physics sq | inner | docks | steps | end | Δ inner |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in report["runs"]:
+        s = r["start"]
+        t, p = r.get("table"), r.get("physics")
+        d = "—" if not (t and p) else f"{t['inner_squares'] - p['inner_squares']:+d}"
+        phys = _cell(p) if p else f"error: {r.get('error')} | | | |"
+        rows.append(
+            f"| {r['index']} | {s['x']:.1f}, {s['y']:.1f}, {s['h']:.1f} | {_cell(t)} | "
+            f"{phys} | {d} |"
+        )
+    return rows
+
+
+def summary_lines(report: dict[str, Any]) -> list[str]:
+    """The summary as Markdown lines (also printed by the CLI)."""
+    s = report["summary"]
+    lines = [
+        f"- starts: {s['starts']}, physics finished: {s['physics_ok']}, "
+        f"physics errors: {s['physics_errors']}; wall time {s['wall_s']:.1f} s",
+    ]
+    for name, key in (("table (all runs)", "table"), ("table (paired)", "table_paired"),
+                      ("physics", "physics")):  # fmt: skip
+        w = s[key]
+        if not w.get("runs"):
+            lines.append(f"- {name}: no runs")
+            continue
+        lines.append(
+            f"- {name}: mean squares {w['mean_squares']:.2f}, mean inner "
+            f"{w['mean_inner_squares']:.2f} = {w['inner_pct']:.1f}% of {s['inner_squares_total']}, "
+            f"docks {w['docks_total']} (success {100 * w['dock_success']:.0f}% of runs), "
+            f"mean steps {w['mean_steps']:.0f}, ends {w['ends']}, {w['mean_wall_s']:.2f} s/run"
+        )
+    g = s["gap"]
+    if g.get("runs"):
+        lines.append(
+            f"- gap table − physics over {g['runs']} paired runs: inner {g['inner_pct_pp']:+.1f} "
+            f"pp, squares {g['squares']:+.2f}, docking success {g['dock_success_pp']:+.0f} pp, "
+            f"mean |Δ inner| per run {g['mean_abs_inner_diff']:.2f}"
+        )
+    return lines
+
+
+def report_markdown(report: dict[str, Any]) -> str:
+    """``report.md``: settings in brief, per-start table, summary, errors."""
+    st = report["settings"]
+    lines = [
+        "# Validation: table simulation vs MuJoCo physics",
+        "",
+        f"Gait table: `{report['table']['source']}`; mode {st['mode']}, "
+        f"{st['max_steps']} steps per run; {report['summary']['starts']} starts.",
+        "",
+        "## Summary",
+        "",
+        *summary_lines(report),
+        "",
+        "## Per start",
+        "",
+        *run_rows(report),
+        "",
+    ]
+    errors = [r for r in report["runs"] if r.get("error")]
+    if errors:
+        lines += ["## Errors", ""]
+        lines += [f"- run {r['index']}: {r['error']}" for r in errors]
+        lines.append("")
+    lines += ["## Chromosome", "", "```", report["chromosome"].rstrip(), "```", ""]
+    return "\n".join(lines)
+
+
+__all__ = [
+    "MODE",
+    "StartJob",
+    "ValidationError",
+    "check_chromosome",
+    "check_start",
+    "inner_square_count",
+    "report_markdown",
+    "run_start",
+    "summarise",
+    "validate",
+    "write_report",
+]
