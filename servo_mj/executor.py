@@ -69,7 +69,9 @@ class ServoBot:
     ``"servobot/"`` when attached by ``dm_control.mjcf``). The free joint is found from the
     torso by walking up its parents. Sets ``model.opt.timestep`` to ``physics.timestep_s``.
     Servo-target noise (``physics.servo_noise_rad``) is drawn from ``rng``
-    (default ``np.random.default_rng(0)``).
+    (default ``np.random.default_rng(0)``) for all 12 servos every frame, and applied only to
+    the servos that receive a new activation (target changed since the previous frame): a
+    held servo keeps its previous command, so standing still (gait 7) stays still.
     """
 
     def __init__(
@@ -103,6 +105,8 @@ class ServoBot:
         self.foot_radius_m = float(model.geom_size[foot_geom, 0])
         self.cycles = 0
         """Gait cycles run since construction (for error messages)."""
+        self._nominal = GaitLibrary.home()  # last commanded target without noise, rad
+        self._command = GaitLibrary.home()  # last command sent (with noise), rad
 
     # --- accessors -------------------------------------------------------------------------
     def pose(self) -> Pose:
@@ -138,6 +142,7 @@ class ServoBot:
         d.qvel[self.joint_dadr] = 0.0
         d.qacc_warmstart[:] = 0.0
         d.ctrl[self.actuators] = GaitLibrary.home()
+        self._nominal, self._command = GaitLibrary.home(), GaitLibrary.home()
         mujoco.mj_kinematics(m, d)
         # Shift so that the torso centre is over (x, y) and the lowest foot just above the floor.
         torso = d.xpos[self.torso]
@@ -168,9 +173,12 @@ class ServoBot:
         m, d = self.model, self.data
         self._clear_warnings()
         for target in frames:
+            command = target
             if noise > 0.0:
-                target = target + self.rng.normal(0.0, noise, size=target.shape)
-            d.ctrl[self.actuators] = target
+                jitter = self.rng.normal(0.0, noise, size=target.shape)
+                command = np.where(target != self._nominal, target + jitter, self._command)
+            self._nominal, self._command = target, command
+            d.ctrl[self.actuators] = command
             mujoco.mj_step(m, d, self.substeps)
             self._check(f"gait {g}", self.cycles, d.time)
             if on_frame is not None:

@@ -1,0 +1,147 @@
+"""Fit the gait rows so that the physics reproduces Figure 4 (``servobot calibrate --fit``).
+
+Each gait is fitted on its own (scipy.optimize Nelder-Mead) over three of its row parameters,
+``(left, right, yaw)`` (see ``servo_mj.gaits``); ``lift`` stays as set. One evaluation runs the
+exact calibration walk of that gait (``measure.measure_gait``: settling cycles, then
+``cycles`` measured cycles, same seed and noise) and scores the mean (F, T, dH) against the
+paper with residuals scaled by the tolerances (1 cm, 1 cm, 1.5°). The search stops early once
+every scaled residual is below ``FitSettings.stop_residual``. Gait 7 (stand still) has no
+parameters to fit. The stance sweep is kept inside the thrust servos' ctrlrange by a penalty.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from calibration.measure import measure_gait
+from calibration.report import TOLERANCE
+from evolve.table import PAPER_TABLE
+from servo_mj.gaits import N_GAITS, GaitLibrary, check_gait
+from servo_mj.model import load_robot
+from servo_mj.settings import CALIBRATION_NOISE_RAD
+
+FIXED_GAITS = (7,)
+"""Gaits without fitted parameters (stand still)."""
+THRUST_LIMIT_RAD = 1.05
+"""Thrust servo ctrlrange half-width, rad (``servobot.xml`` class ``thrust``)."""
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """How the per-gait fit searches [chosen]."""
+
+    cycles: int = 20
+    """Measured cycles per evaluation (same as the default calibration)."""
+    settle_cycles: int = 1
+    """Unmeasured cycles before them."""
+    seed: int = 0
+    """Seed of the servo-target noise during the fit."""
+    noise_rad: float = CALIBRATION_NOISE_RAD
+    """Servo-target noise during the fit, rad."""
+    max_evals: int = 160
+    """Evaluations per gait at most."""
+    stop_residual: float = 0.3
+    """Stop once every |error| / tolerance is below this."""
+    step: tuple[float, float, float] = (0.12, 0.12, 0.06)
+    """Initial simplex steps of (left, right, yaw)."""
+
+
+class _Done(Exception):
+    pass
+
+
+def scaled_residual(measured: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """(measured − target) / TOLERANCE for one gait's (F, T, dH)."""
+    return (np.asarray(measured) - np.asarray(target)) / TOLERANCE
+
+
+def fit_gait(
+    gait: int,
+    library: GaitLibrary,
+    settings: FitSettings = FitSettings(),
+    target: np.ndarray | None = None,
+    log: Callable[[str], None] | None = None,
+) -> tuple[tuple[float, float, float, float], np.ndarray, int]:
+    """Fit one gait's (left, right, yaw). Returns (row, measured mean (3,), evaluations)."""
+    g = check_gait(gait)
+    target = PAPER_TABLE[g] if target is None else np.asarray(target, dtype=float)
+    lift = library.rows[g][3]
+    model, _ = load_robot(scene=True)
+    best: dict = {"cost": np.inf, "x": None, "mean": None, "n": 0}
+
+    def cost(x: np.ndarray) -> float:
+        left, right, yaw = (float(v) for v in x)
+        reach = abs(yaw) + library.stride_rad * max(abs(left), abs(right))
+        penalty = 100.0 * max(0.0, reach - THRUST_LIMIT_RAD) ** 2
+        lib = library.with_row(g, (left, right, yaw, lift))
+        per_cycle = measure_gait(
+            g,
+            cycles=settings.cycles,
+            settle_cycles=settings.settle_cycles,
+            seed=settings.seed,
+            noise_rad=settings.noise_rad,
+            library=lib,
+            model=model,
+        )
+        mean = per_cycle.mean(axis=0)
+        r = scaled_residual(mean, target)
+        c = float(r @ r) + penalty
+        best["n"] += 1
+        if c < best["cost"]:
+            best.update(cost=c, x=(left, right, yaw), mean=mean)
+            if log:
+                log(f"gait {g} eval {best['n']}: row {np.round(x, 4)} -> {np.round(mean, 2)}")
+            if penalty == 0.0 and np.all(np.abs(r) < settings.stop_residual):
+                raise _Done
+        if best["n"] >= settings.max_evals:
+            raise _Done
+        return c
+
+    x0 = np.array(library.rows[g][:3])
+    simplex = np.vstack([x0, x0 + np.diag(settings.step)])
+    try:
+        minimize(cost, x0, method="Nelder-Mead", options={"initial_simplex": simplex})
+    except _Done:
+        pass
+    left, right, yaw = best["x"]
+    return (left, right, yaw, lift), best["mean"], best["n"]
+
+
+def _fit_one(args: tuple) -> tuple[int, tuple, np.ndarray, int]:
+    gait, library, settings = args
+    row, mean, n = fit_gait(gait, library, settings)
+    return gait, row, mean, n
+
+
+def fit_library(
+    library: GaitLibrary | None = None,
+    settings: FitSettings = FitSettings(),
+    *,
+    gaits: list[int] | None = None,
+    workers: int = 1,
+    log: Callable[[str], None] | None = None,
+) -> tuple[GaitLibrary, dict]:
+    """Fit every gait (or ``gaits``) independently; returns the fitted library and a report
+    ``{gait: {"row", "measured", "evaluations"}}``."""
+    library = library or GaitLibrary.load()
+    todo = [g for g in (gaits if gaits is not None else range(N_GAITS)) if g not in FIXED_GAITS]
+    jobs = [(g, library, settings) for g in todo]
+    if workers > 1 and len(jobs) > 1:
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+            results = []
+            for res in pool.map(_fit_one, jobs):
+                results.append(res)
+                if log:
+                    log(f"gait {res[0]}: {res[3]} evaluations, measured {np.round(res[2], 2)}")
+    else:
+        results = [(g, *fit_gait(g, library, settings, log=log)) for g in todo]
+    report = {}
+    for g, row, mean, n in results:
+        library = library.with_row(g, row)
+        report[g] = {"row": list(row), "measured": [float(v) for v in mean], "evaluations": n}
+    return library, report

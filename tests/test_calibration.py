@@ -1,0 +1,109 @@
+"""Calibration: measurement shape and determinism, the CLI's outputs, the fit, bad inputs."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from calibration import cli
+from calibration.fit import FitSettings, fit_gait, scaled_residual
+from calibration.measure import measure_gait, measure_gaits
+from evolve.table import PAPER_TABLE, GaitTableError, load_table
+from servo_mj.gaits import PARAMS_JSON, GaitLibrary
+
+
+def test_measure_gaits_shape_nan_rows_and_stand_still() -> None:
+    values, std = measure_gaits(gaits=(0, 7), cycles=2, seed=1)
+    assert values.shape == std.shape == (16, 3)
+    assert np.all(np.isnan(values[[1, 2, 3, 15]]))
+    assert np.all(np.abs(values[7]) < 1e-3) and np.all(std[7] < 1e-3)
+    assert values[0, 0] > 8.0 and np.all(std[0] > 0.0)  # noise gives a real spread
+
+
+def test_same_seed_same_numbers_whatever_the_worker_count() -> None:
+    a = measure_gaits(gaits=(2, 13), cycles=2, seed=3, workers=1)
+    b = measure_gaits(gaits=(2, 13), cycles=2, seed=3, workers=2)
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+    c = measure_gaits(gaits=(2, 13), cycles=2, seed=4)
+    assert not np.array_equal(a[0][[2, 13]], c[0][[2, 13]])
+
+
+def test_measure_rejects_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="unknown gait"):
+        measure_gait(16, cycles=1)
+    with pytest.raises(ValueError, match="cycles"):
+        measure_gait(0, cycles=0)
+    with pytest.raises(ValueError, match="noise"):
+        measure_gait(0, cycles=1, noise_rad=float("nan"))
+
+
+def test_fit_reduces_the_error_of_a_detuned_gait() -> None:
+    lib = GaitLibrary.load()
+    left, right, yaw, lift = lib.rows[2]
+    detuned = lib.with_row(2, (left + 0.3, right, yaw, lift))  # much too little turn
+    fs = FitSettings(cycles=2, max_evals=12, stop_residual=0.0)
+    before = measure_gait(2, cycles=2, library=detuned, seed=fs.seed).mean(axis=0)
+    row, after, n = fit_gait(2, detuned, fs)
+    assert n == 12 and len(row) == 4 and row[3] == lift
+    cost = lambda v: float(np.sum(scaled_residual(v, PAPER_TABLE[2]) ** 2))  # noqa: E731
+    assert cost(after) < cost(before)
+
+
+def test_cli_writes_a_table_evolve_loads_and_a_figure(tmp_path, capsys) -> None:
+    out = tmp_path / "cal"
+    assert cli.main(["--cycles", "1", "--out", str(out), "--workers", "1"]) == 0
+    table = load_table(out / "gait_table.json")
+    assert table.values.shape == (16, 3) and table.std.shape == (16, 3)
+    doc = json.loads((out / "gait_table.json").read_text())
+    assert all(row["cycles"] == 1 for row in doc["gaits"])
+    for key in ("model_sha256", "mujoco_version", "gait_params", "physics", "seed"):
+        assert key in doc
+    assert (out / "figure4.png").stat().st_size > 10_000
+    printed = capsys.readouterr().out
+    assert "paper" in printed and "within tolerance" in printed
+    # same seed, same file contents (bar the wall time)
+    out2 = tmp_path / "cal2"
+    assert cli.main(["--cycles", "1", "--out", str(out2), "--workers", "2"]) == 0
+    np.testing.assert_array_equal(load_table(out2 / "gait_table.json").values, table.values)
+
+
+def test_cli_fit_writes_parameters_where_asked_and_not_over_the_shipped_file(tmp_path) -> None:
+    shipped = PARAMS_JSON.read_bytes()
+    params = tmp_path / "params.json"
+    args = ["--fit", "--fit-evals", "1", "--cycles", "1", "--workers", "1"]
+    assert cli.main([*args, "--out", str(tmp_path / "c"), "--params-out", str(params)]) == 0
+    assert PARAMS_JSON.read_bytes() == shipped
+    lib = GaitLibrary.load(params)
+    assert lib.meta["fitted"] is True and set(lib.rows) == set(range(16))
+
+
+def test_cli_bad_inputs_give_clear_errors(tmp_path, capsys) -> None:
+    assert cli.main(["--cycles", "0", "--out", str(tmp_path)]) == 2
+    assert "--cycles must be >= 1" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"gaits": []}')
+    assert cli.main(["--params", str(bad), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.json" in err and "missing gaits" in err
+    assert not (tmp_path / "gait_table.json").exists()
+
+
+def test_a_malformed_table_file_is_rejected_by_name(tmp_path) -> None:
+    out = tmp_path / "cal"
+    assert cli.main(["--cycles", "1", "--out", str(out), "--workers", "1"]) == 0
+    doc = json.loads((out / "gait_table.json").read_text())
+    doc["gaits"] = doc["gaits"][:15]
+    broken = tmp_path / "broken.json"
+    broken.write_text(json.dumps(doc))
+    with pytest.raises(GaitTableError, match="missing gaits"):
+        load_table(broken)
+
+
+def test_cli_records_a_rerun_file(tmp_path) -> None:
+    pytest.importorskip("servo_mj.recording")
+    rrd = tmp_path / "cal.rrd"
+    assert cli.main(["--cycles", "1", "--out", str(tmp_path), "--rrd", str(rrd)]) == 0
+    assert rrd.stat().st_size > 10_000
