@@ -10,6 +10,10 @@ The robot MJCF is attached through an attachment frame that carries the free joi
 robot's own free joint is removed and the torso's placement moved onto the frame, so that the
 frame's free-joint qpos means what the robot's did (keyframes stay valid). The object-sensor
 rangefinder fans (``servo_mj.sensors``) are added to the torso before attaching.
+
+Physics options (timestep, integrator, friction cone, solver, ...) and the floor's contact
+parameters are copied from the calibration scene (``models/servobot/scene.xml``) after
+compiling, so that the gaits walk in the arena as they did when the gait table was measured.
 """
 
 from __future__ import annotations
@@ -55,13 +59,6 @@ class ArenaSettings:
     """Height of the rangefinder sites above the torso frame origin: above the servos and the
     lifted legs (≤ 0.045 m), 0.12 m above the floor, so a ray must tilt ~13° to meet the floor
     within 0.5 m."""
-    floor_friction: tuple[float, float, float] = (1.0, 0.005, 0.0001)
-    """Floor friction (slide, spin, roll): MuJoCo's default, as on the calibration floor of
-    ``models/servobot/scene.xml``, so gaits behave as they were calibrated."""
-    timestep_s: float = 0.002
-    """Physics step, as in ``models/servobot/scene.xml`` (the robot MJCF carries no option)."""
-    integrator: str = "implicitfast"
-    """MuJoCo integrator, as in ``models/servobot/scene.xml``."""
     colours: dict[str, tuple[float, float, float, float]] = field(
         default_factory=lambda: {
             "floor": (0.82, 0.80, 0.75, 1.0),
@@ -88,6 +85,10 @@ class RobotSpec:
     """Name of the robot's free joint (removed on attach); None = the torso's first joint."""
     forward_axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
     """The robot's forward axis in the torso frame."""
+    scene_xml: Path | None = None
+    """The calibration scene: the arena copies its physics options (timestep, integrator,
+    friction cone, solver ...) and its floor's contact parameters, so that gaits behave in the
+    arena as they did when the gait table was measured. None = MuJoCo defaults."""
 
 
 def default_robot() -> RobotSpec:
@@ -95,7 +96,12 @@ def default_robot() -> RobotSpec:
     from servo_mj import constants as c
 
     # constants: "Robot body frame: +x forward, +y left, +z up".
-    return RobotSpec(xml=Path(c.ROBOT_XML), torso_body=c.TORSO, free_joint=c.FREE_JOINT)
+    return RobotSpec(
+        xml=Path(c.ROBOT_XML),
+        torso_body=c.TORSO,
+        free_joint=c.FREE_JOINT,
+        scene_xml=Path(c.SCENE_XML),
+    )
 
 
 def _m(units: float) -> float:
@@ -118,7 +124,6 @@ def add_arena(root: mjcf.RootElement, world: WorldSettings, arena: ArenaSettings
     wb.add(
         "geom", name="floor", type="plane", material="grid",
         pos=[half, half, 0.0], size=[half + arena.floor_margin_m] * 2 + [0.05],
-        friction=list(arena.floor_friction),
     )  # fmt: skip
     walls = {
         "wall_west": ([-t / 2, half, h / 2], [t / 2, half + t, h / 2]),
@@ -174,8 +179,6 @@ def build_arena(
     arena = arena or ArenaSettings()
     spec = robot or default_robot()
     root = mjcf.RootElement(model="colony")
-    root.option.timestep = arena.timestep_s
-    root.option.integrator = arena.integrator
     add_arena(root, world, arena)
     bot = mjcf.from_path(str(spec.xml))
     torso = _detach_free_joint(bot, spec)
@@ -217,15 +220,39 @@ def compile_arena(
     """Build and compile the colony; returns model, data and the robot's prefix."""
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
-    root = build_arena(world, arena, robot)
+    spec = robot or default_robot()
+    root = build_arena(world, arena, spec)
     xml = root.to_xml_string()
     model = mujoco.MjModel.from_xml_string(xml, root.get_assets())
+    if spec.scene_xml is not None:
+        match_scene(model, mujoco.MjModel.from_xml_path(str(spec.scene_xml)))
     data = mujoco.MjData(model)
     attached = root.worldbody.find_all("body")
     prefix = _robot_prefix(root, attached)
     mujoco.mj_forward(model, data)
     index = ObjectSensorIndex.from_model(model, prefix, arena.rays_per_span)
     return ArenaModel(model, data, prefix, index, world, arena, xml)
+
+
+SCENE_FLOOR = "floor"
+"""Name of the floor geom in the calibration scene (and in the arena)."""
+ARENA_SURFACES = ("floor", "wall_west", "wall_east", "wall_south", "wall_north", "station")
+"""Arena geoms that take the calibration floor's contact parameters."""
+_CONTACT_FIELDS = ("friction", "solref", "solimp", "solmix", "condim", "priority", "margin", "gap")
+
+
+def match_scene(model: mujoco.MjModel, scene: mujoco.MjModel) -> None:
+    """Copy the scene's physics options and its floor's contact parameters into ``model``."""
+    for name in dir(scene.opt):
+        if not name.startswith("_"):
+            setattr(model.opt, name, getattr(scene.opt, name))
+    src = mujoco.mj_name2id(scene, mujoco.mjtObj.mjOBJ_GEOM, SCENE_FLOOR)
+    if src < 0:
+        raise ValueError(f"calibration scene has no geom named {SCENE_FLOOR!r}")
+    for surface in ARENA_SURFACES:
+        dst = model.geom(surface).id
+        for f in _CONTACT_FIELDS:
+            getattr(model, "geom_" + f)[dst] = getattr(scene, "geom_" + f)[src]
 
 
 def _robot_prefix(root: mjcf.RootElement, bodies: list) -> str:
@@ -256,5 +283,6 @@ __all__ = [
     "build_arena",
     "compile_arena",
     "default_robot",
+    "match_scene",
     "warnings_raised",
 ]
