@@ -38,20 +38,38 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--settle-cycles", type=int, default=1, help="unmeasured cycles first (1)")
     p.add_argument("--seed", type=int, default=0, help="seed of the servo-target noise (0)")
     p.add_argument(
-        "--noise", type=float, default=CALIBRATION_NOISE_RAD,
+        "--noise",
+        type=float,
+        default=CALIBRATION_NOISE_RAD,
         help=f"servo-target noise std, rad ({CALIBRATION_NOISE_RAD})",
     )
     p.add_argument("--out", type=Path, default=Path("runs/calibration"), help="output folder")
     p.add_argument("--fit", action="store_true", help="fit the gait parameters to Figure 4 first")
-    p.add_argument("--fit-evals", type=int, default=FitSettings.max_evals,
-                   help=f"max evaluations per gait in --fit ({FitSettings.max_evals})")
-    p.add_argument("--params", type=Path, default=None,
-                   help="gait-parameter JSON to start from (default: the shipped one)")
-    p.add_argument("--params-out", type=Path, default=PARAMS_JSON,
-                   help="where --fit saves the fitted parameters (default: the shipped file)")
+    p.add_argument(
+        "--fit-evals",
+        type=int,
+        default=FitSettings.max_evals,
+        help=f"max evaluations per gait in --fit ({FitSettings.max_evals})",
+    )
+    p.add_argument(
+        "--params",
+        type=Path,
+        default=None,
+        help="gait-parameter JSON to start from (default: the shipped one)",
+    )
+    p.add_argument(
+        "--params-out",
+        type=Path,
+        default=PARAMS_JSON,
+        help="where --fit saves the fitted parameters (default: the shipped file)",
+    )
     p.add_argument("--rrd", type=Path, default=None, help="record the walks for rerun (.rrd)")
-    p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
-                   help="processes for measuring/fitting gaits in parallel")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=min(2, os.cpu_count() or 1),
+        help="processes for measuring/fitting gaits in parallel",
+    )
     return p
 
 
@@ -91,7 +109,11 @@ def _record(args, library, kwargs):
             rec.log_calibration_cycle(g, k, f, t, dh, g * per_gait_s + res.t_end_s)
 
         return measure_all(
-            range(N_GAITS), workers=1, model=model, on_frame=on_frame, on_cycle=on_cycle,
+            range(N_GAITS),
+            workers=1,
+            model=model,
+            on_frame=on_frame,
+            on_cycle=on_cycle,
             **kwargs,
         )
 
@@ -112,22 +134,34 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.fit:
             fs = FitSettings(
-                cycles=args.cycles, settle_cycles=args.settle_cycles, seed=args.seed,
-                noise_rad=args.noise, max_evals=args.fit_evals,
+                cycles=args.cycles,
+                settle_cycles=args.settle_cycles,
+                seed=args.seed,
+                noise_rad=args.noise,
+                max_evals=args.fit_evals,
             )
             print(f"fitting 15 gaits ({args.workers} workers, <= {fs.max_evals} evaluations each)")
             library, fit_report = fit_library(
                 library, fs, workers=args.workers, log=lambda s: print("  " + s, flush=True)
             )
             library = GaitLibrary(
-                library.rows, library.stride_rad, library.lift_rad,
-                {"fitted": True, "fit_settings": fs.__dict__ | {"step": list(fs.step)},
-                 "fit_report": {str(g): r for g, r in fit_report.items()},
-                 "model_sha256": model_sha256(), "mujoco_version": mujoco.__version__},
+                library.rows,
+                library.stride_rad,
+                library.lift_rad,
+                {
+                    "fitted": True,
+                    "fit_settings": fs.__dict__ | {"step": list(fs.step)},
+                    "fit_report": {str(g): r for g, r in fit_report.items()},
+                    "model_sha256": model_sha256(),
+                    "mujoco_version": mujoco.__version__,
+                },
             )
         kwargs = dict(
-            cycles=args.cycles, settle_cycles=args.settle_cycles, seed=args.seed,
-            noise_rad=args.noise, library=library,
+            cycles=args.cycles,
+            settle_cycles=args.settle_cycles,
+            seed=args.seed,
+            noise_rad=args.noise,
+            library=library,
         )
         if args.rrd is not None:
             per_cycle = _record(args, library, kwargs)
@@ -139,7 +173,9 @@ def main(argv: list[str] | None = None) -> int:
     values, std = summarise(per_cycle)
     wall_s = time.perf_counter() - t0
     doc = table_to_json(
-        values, std, cycles=args.cycles,
+        values,
+        std,
+        cycles=args.cycles,
         source="MuJoCo calibration (servobot calibrate)",
         model_sha256=model_sha256(),
         mujoco_version=mujoco.__version__,
@@ -160,8 +196,9 @@ def main(argv: list[str] | None = None) -> int:
     atomic_write_json(args.out / "gait_table.json", doc)
     save_figure(args.out / "figure4.png", values, std)
     print(format_table(values, std))
-    print(f"wrote {args.out / 'gait_table.json'} and {args.out / 'figure4.png'} "
-          f"({wall_s:.1f} s wall)")
+    print(
+        f"wrote {args.out / 'gait_table.json'} and {args.out / 'figure4.png'} ({wall_s:.1f} s wall)"
+    )
     if args.rrd is not None:
         print(f"recording saved to {args.rrd}")
     return 0

@@ -102,7 +102,7 @@ def measure_all(
         kwargs.pop("model", None)
         with ProcessPoolExecutor(max_workers=min(workers, len(gs))) as pool:
             arrays = list(pool.map(_measure_one, [(g, kwargs) for g in gs]))
-        return dict(zip(gs, arrays))
+        return dict(zip(gs, arrays, strict=True))
     if kwargs.get("model") is None:
         kwargs["model"], _ = load_robot(scene=True)
     return {g: measure_gait(g, **kwargs) for g in gs}

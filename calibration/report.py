@@ -25,9 +25,7 @@ def format_table(values: np.ndarray, std: np.ndarray, paper: np.ndarray = PAPER_
     Errors outside the tolerance (1 cm, 1 cm, 1.5°) are marked with ``!``.
     """
     ok = within_tolerance(values, paper)
-    head = "gait " + " | ".join(
-        f"{c + (' cm' if c != 'dH' else ' deg'):^27}" for c in COLUMNS
-    )
+    head = "gait " + " | ".join(f"{c + (' cm' if c != 'dH' else ' deg'):^27}" for c in COLUMNS)
     sub = "     " + " | ".join(f"{'sim ± std':>13} {'paper':>6} {'err':>6}" for _ in COLUMNS)
     lines = ["Figure 4, rebuilt in MuJoCo (sim = mean of the measured cycles):", head, sub]
     for block in (range(0, 8), range(8, 16)):
@@ -60,15 +58,25 @@ def save_figure(
 
     gaits = np.arange(len(paper))
     fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
-    for c, (ax, unit) in enumerate(zip(axes, ("cm", "cm", "deg"))):
+    for c, (ax, unit) in enumerate(zip(axes, ("cm", "cm", "deg"), strict=True)):
         ax.bar(gaits, paper[:, c], width=0.6, color="0.8", label="paper (Figure 4)")
         ax.errorbar(
-            gaits, values[:, c], yerr=std[:, c], fmt="o", color="C0", capsize=3,
+            gaits,
+            values[:, c],
+            yerr=std[:, c],
+            fmt="o",
+            color="C0",
+            capsize=3,
             label="MuJoCo mean ± per-cycle std",
         )
         ax.fill_between(
-            gaits, paper[:, c] - TOLERANCE[c], paper[:, c] + TOLERANCE[c],
-            step="mid", color="C2", alpha=0.15, label="tolerance",
+            gaits,
+            paper[:, c] - TOLERANCE[c],
+            paper[:, c] + TOLERANCE[c],
+            step="mid",
+            color="C2",
+            alpha=0.15,
+            label="tolerance",
         )
         ax.set_ylabel(f"{COLUMNS[c]} ({unit})")
         ax.axhline(0.0, color="k", lw=0.5)

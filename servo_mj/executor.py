@@ -24,6 +24,7 @@ from servo_mj.settings import PhysicsSettings
 
 Pose = tuple[float, float, float]
 CM_PER_M = 100.0
+_DEFAULT_PHYSICS = PhysicsSettings()
 
 
 class PhysicsError(RuntimeError):
@@ -80,7 +81,7 @@ class ServoBot:
         data: mujoco.MjData,
         *,
         prefix: str = "",
-        physics: PhysicsSettings = PhysicsSettings(),
+        physics: PhysicsSettings = _DEFAULT_PHYSICS,
         gaits: GaitLibrary | None = None,
         rng: np.random.Generator | None = None,
     ) -> None:
@@ -205,6 +206,8 @@ class ServoBot:
         if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
             raise PhysicsError(f"non-finite state (NaN/inf) during {where}")
         if float(np.max(np.abs(d.qvel))) > self.physics.max_speed_m_s:
-            raise PhysicsError(f"simulation diverged (speed > {self.physics.max_speed_m_s}) during {where}")
+            raise PhysicsError(
+                f"simulation diverged (speed > {self.physics.max_speed_m_s}) during {where}"
+            )
         if self.upright() < self.physics.upright_min:
             raise PhysicsError(f"torso flipped (up-axis z = {self.upright():.2f}) during {where}")

@@ -49,8 +49,13 @@ LIFT_RAD = 0.35
 #   u = thrust position in units of the stride (+1 front, -1 back), l = lift (1 up, 0 down).
 #   Frames 0-7 stance: sweep front -> back on the ground. Frames 8-15 swing: lift, carry the
 #   foot forward in the air, put it down at the front in the last frame.
-PATTERN_U = (0.75, 0.5, 0.25, 0.0, -0.25, -0.5, -0.75, -1.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.0, 1.0, 1.0)
-PATTERN_L = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0)
+# fmt: off
+#            |------------------ stance -----------------|------------------ swing -------------|
+PATTERN_U = (0.75, 0.5, 0.25, 0.0, -0.25, -0.5, -0.75, -1.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.0, 1.0,
+             1.0)
+PATTERN_L = (0.0,  0.0, 0.0,  0.0, 0.0,   0.0,  0.0,   0.0,  1.0,  1.0,  1.0, 1.0, 1.0, 1.0, 1.0,
+             0.0)
+# fmt: on
 TRIPOD_SHIFT = 8
 """Tripod B runs the pattern this many frames after tripod A."""
 
@@ -167,7 +172,7 @@ class GaitLibrary:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready parameters: amplitudes, pattern, leg order and the 16 rows."""
         gaits = [
-            {"gait": g, "kind": GAIT_KIND[g], **dict(zip(PARAM_NAMES, self.rows[g]))}
+            {"gait": g, "kind": GAIT_KIND[g], **dict(zip(PARAM_NAMES, self.rows[g], strict=True))}
             for g in range(N_GAITS)
         ]
         return {

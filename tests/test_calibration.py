@@ -84,10 +84,12 @@ def test_cli_bad_inputs_give_clear_errors(tmp_path, capsys) -> None:
     assert cli.main(["--cycles", "0", "--out", str(tmp_path)]) == 2
     assert "--cycles must be >= 1" in capsys.readouterr().err
     bad = tmp_path / "bad.json"
-    bad.write_text('{"gaits": []}')
+    doc = GaitLibrary.load().to_dict()
+    doc["gaits"] = doc["gaits"][:3]
+    bad.write_text(json.dumps(doc))
     assert cli.main(["--params", str(bad), "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
-    assert "bad.json" in err and "missing gaits" in err
+    assert "bad.json" in err and "missing gaits [3, 4," in err
     assert not (tmp_path / "gait_table.json").exists()
 
 
