@@ -126,3 +126,14 @@ def test_ray_count_is_a_setting():
             m.sensor(colony.prefix + sensor_name(side, 3)).type
             == mujoco.mjtSensor.mjSENS_RANGEFINDER
         )
+
+
+def test_physics_options_and_floor_contact_match_the_calibration_scene(colony):
+    scene = mujoco.MjModel.from_xml_path(str(C.SCENE_XML))
+    m = colony.model
+    for name in ("timestep", "integrator", "cone", "impratio", "solver", "iterations"):
+        assert np.all(getattr(m.opt, name) == getattr(scene.opt, name)), name
+    src, dst = scene.geom("floor").id, m.geom("floor").id
+    assert np.array_equal(m.geom_friction[dst], scene.geom_friction[src])
+    assert np.array_equal(m.geom_solref[dst], scene.geom_solref[src])
+    assert m.geom_condim[dst] == scene.geom_condim[src]

@@ -1,0 +1,200 @@
+"""``validate`` and ``servobot validate``: tiny-budget smoke runs, the report layout, bad input,
+a physics blow-up confined to its own run, and the executor pool."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from evolve.codec import parse_chromosome
+from evolve.table import PAPER_TABLE, load_table, table_to_json
+from servo_mj import physics_world, validate_cli
+from servo_mj.pool import Failed, Ok, ProcessExecutor, SerialExecutor, run_all
+from servo_mj.validate import ValidationError, validate
+
+GENE_8 = "01 0100000 0100000 0100000 0100000\n"
+BITS = parse_chromosome(GENE_8 * 16)
+STARTS = np.array([[400.0, 200.0, 300.0], [300.0, 300.0, 45.0]])
+RECORD_KEYS = {"squares", "inner_squares", "docks", "steps", "end"}
+
+
+def _strip_times(report):
+    return [
+        {w: {k: v for k, v in (r[w] or {}).items() if k != "wall_s"} for w in ("table", "physics")}
+        for r in report["runs"]
+    ]
+
+
+@pytest.fixture(scope="module")
+def serial_report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial")
+    rep = validate(BITS, STARTS, table=load_table("paper"), workers=1, max_steps=20, out_dir=out)
+    return out, rep
+
+
+def test_report_layout_and_files(serial_report):
+    out, rep = serial_report
+    doc = json.loads((out / "report.json").read_text())
+    assert len(doc["runs"]) == 2
+    for k, r in enumerate(doc["runs"]):
+        assert r["index"] == k
+        assert r["start"] == dict(zip("xyh", STARTS[k], strict=True))
+        assert r["error"] is None
+        for world in ("table", "physics"):
+            assert RECORD_KEYS <= set(r[world])
+            assert set(r[world]["end"]) == {"code", "name"}
+            assert 0 < r[world]["steps"] <= 20
+            assert 0 <= r[world]["inner_squares"] <= r[world]["squares"]
+    s = doc["summary"]
+    assert s["starts"] == 2 and s["physics_ok"] == 2 and s["physics_errors"] == 0
+    for world in ("table", "physics"):
+        w = s[world]
+        mean_inner = np.mean([r[world]["inner_squares"] for r in doc["runs"]])
+        assert w["inner_pct"] == pytest.approx(100 * mean_inner / 64)
+        assert 0.0 <= w["dock_success"] <= 1.0
+    assert s["gap"]["inner_pct_pp"] == pytest.approx(
+        s["table_paired"]["inner_pct"] - s["physics"]["inner_pct"]
+    )
+    assert "wall_s" in s
+    md = (out / "report.md").read_text()
+    assert "| # | start" in md and "gap table − physics" in md
+    tracks = np.load(out / "tracks.npz")
+    assert tracks["physics_1"].shape == (doc["runs"][1]["physics"]["steps"] + 1, 3)
+    assert np.allclose(tracks["table_0"][0], STARTS[0])
+
+
+def test_pool_gives_the_same_records_as_serial(serial_report, tmp_path):
+    _, serial = serial_report
+    pooled = validate(BITS, STARTS, table=PAPER_TABLE, workers=2, max_steps=20, out_dir=tmp_path)
+    assert _strip_times(pooled) == _strip_times(serial)
+    assert (tmp_path / "report.json").exists()
+
+
+def test_physics_blow_up_is_that_runs_error_only(tmp_path, monkeypatch):
+    """Start 1's physics state turns NaN at its third cycle: ServoBot's own check raises, the
+    run is recorded with its error and its table record, and start 0 is unaffected."""
+    original = physics_world.PhysicsWorld.step
+
+    def step(self, gait):
+        if self.cycles == 2 and abs(self.pose()[0] - 300.0) < 40.0:
+            self.data.qvel[0] = np.nan
+        return original(self, gait)
+
+    monkeypatch.setattr(physics_world.PhysicsWorld, "step", step)
+    rep = validate(BITS, STARTS, table=PAPER_TABLE, executor=SerialExecutor(), max_steps=10,
+                   out_dir=tmp_path)  # fmt: skip
+    ok, bad = rep["runs"]
+    assert ok["error"] is None and ok["physics"]["steps"] == 10
+    assert bad["physics"] is None and "PhysicsError" in bad["error"]
+    assert "BADQVEL" in bad["error"] or "non-finite" in bad["error"]
+    assert bad["table"]["steps"] == 10 and bad["physics_partial"]["steps"] == 2
+    doc = json.loads((tmp_path / "report.json").read_text())
+    assert doc["summary"]["physics_errors"] == 1 and doc["summary"]["physics_ok"] == 1
+    assert "## Errors" in (tmp_path / "report.md").read_text()
+
+
+def test_bad_inputs_are_named():
+    with pytest.raises(ValidationError, match="16-gene"):
+        validate(BITS[:8], STARTS, table=PAPER_TABLE, workers=1)
+    with pytest.raises(ValidationError, match="kill zone"):
+        validate(BITS, [[480.0, 250.0, 0.0]], table=PAPER_TABLE, workers=1)
+    with pytest.raises(ValidationError, match="outside"):
+        validate(BITS, [[250.0, -10.0, 0.0]], table=PAPER_TABLE, workers=1)
+    with pytest.raises(ValidationError, match=r"\(N, 3\)"):
+        validate(BITS, [250.0, 250.0], table=PAPER_TABLE, workers=1)
+
+
+# --------------------------------------------------------------------------- the CLI
+@pytest.fixture
+def chromosome(tmp_path):
+    path = tmp_path / "c.txt"
+    path.write_text("# always gait 8\n" + GENE_8 * 16)
+    return path
+
+
+def test_cli_smoke(chromosome, tmp_path, capsys):
+    out = tmp_path / "out"
+    rc = validate_cli.main(
+        [str(chromosome), "--starts", "2", "--steps", "8", "--workers", "1", "--no-progress",
+         "--out", str(out), "--seed", "3"]
+    )  # fmt: skip
+    assert rc == 0
+    doc = json.loads((out / "report.json").read_text())
+    want = validate_cli.draw_starts(2, np.random.default_rng(3), validate_cli.WorldSettings())
+    assert np.allclose([[r["start"][k] for k in "xyh"] for r in doc["runs"]], want)
+    printed = capsys.readouterr().out
+    assert "| # | start" in printed and "physics:" in printed
+
+
+def test_cli_rrd_writes_one_recording_per_run(chromosome, tmp_path):
+    out = tmp_path / "out"
+    rc = validate_cli.main(
+        [str(chromosome), "--start", "300", "300", "45", "--steps", "4", "--workers", "1",
+         "--no-progress", "--out", str(out), "--rrd"]
+    )  # fmt: skip
+    assert rc == 0
+    assert (out / "run0.rrd").stat().st_size > 1000
+    assert not (out / "run1.rrd").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--start", "10", "250", "0"], "kill zone"),
+        (["--start", "600", "250", "0"], "outside the 500 x 500 arena"),
+        (["--starts", "0"], "--starts must be at least 1"),
+        (["--workers", "0"], "--workers must be at least 1"),
+        (["--table", "nope.json"], "no such gait-table file"),
+    ],
+)
+def test_cli_bad_input_exits_2_with_a_message(chromosome, args, message, capsys):
+    assert validate_cli.main([str(chromosome), "--no-progress", *args]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_cli_rejects_unparsable_and_8_gene_chromosomes(tmp_path, capsys):
+    bad = tmp_path / "bad.txt"
+    bad.write_text(GENE_8 * 3 + "01 0100000 01000x0 0100000 0100000\n" + GENE_8 * 12)
+    assert validate_cli.main([str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.txt:4" in err and "non-binary" in err
+    short = tmp_path / "short.txt"
+    short.write_text(GENE_8 * 8)
+    assert validate_cli.main([str(short)]) == 2
+    assert "16-gene" in capsys.readouterr().err
+
+
+def test_cli_rejects_a_table_from_another_robot_model(chromosome, tmp_path, capsys):
+    from servo_mj.model import model_sha256
+
+    other = tmp_path / "other.json"
+    doc = table_to_json(PAPER_TABLE, provenance={"model_sha256": "0" * 64})
+    other.write_text(json.dumps(doc))
+    assert validate_cli.main([str(chromosome), "--table", str(other)]) == 2
+    err = capsys.readouterr().err
+    assert "0" * 64 in err and model_sha256() in err
+    robot = tmp_path / "robot.json"
+    robot.write_text(json.dumps(dict(doc, robot="khepera")))
+    assert validate_cli.main([str(chromosome), "--table", str(robot)]) == 2
+    assert "khepera" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- the pool
+def _square_or_die(x: int) -> int:
+    if x == 2:
+        os._exit(3)  # a worker dying outright, as on a segfault
+    if x == 3:
+        raise ValueError("three is bad")
+    return x * x
+
+
+def test_pool_confines_raises_and_crashes_to_their_items():
+    out = run_all(ProcessExecutor(2), _square_or_die, [0, 1, 2, 3, 4])
+    assert out[0] == Ok(0) and out[1] == Ok(1) and out[4] == Ok(16)
+    assert isinstance(out[2], Failed) and "died" in out[2].message
+    assert isinstance(out[3], Failed) and out[3].message == "ValueError: three is bad"
+    serial = run_all(SerialExecutor(), _square_or_die, [0, 1, 3])
+    assert serial[:2] == [Ok(0), Ok(1)] and isinstance(serial[2], Failed)
