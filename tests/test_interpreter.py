@@ -286,6 +286,18 @@ def test_no_docking_check_during_the_charging_routine() -> None:
     assert res.steps == 30 and res.end == END_STEP_LIMIT
 
 
+def test_charging_routine_can_end_in_the_kill_zone() -> None:
+    table = ZERO_TABLE.copy()
+    table[15] = (0.0, -60.0, 0.0)  # backing up steps 60 left: facing east, that is north
+    bits = chrom(gene("00", B(4, 0), G(7), G(7), G(7)))
+    res, ev = trace(bits, (460, 250, 90), table=table, start_power=3.9)
+    # Backup poses y = 310, 370, 430 reach squares (9, 6), (9, 7), (9, 8); y = 490 is in
+    # square (9, 9)'s contact zone but also in the kill zone: not counted.
+    assert res.end == END_KILL_ZONE and res.steps == 5 and res.docks == 1
+    assert res.reached == frozenset({69, 79, 89})
+    assert ev[-1].mode == "charging" and ev[-2].pose == pytest.approx((460, 490, 90))
+
+
 def test_dock_only_in_navigation_section() -> None:
     res, _ = trace(chrom(STILL), (460, 250, 90), start_power=4.5, max_steps=5)
     assert res.docks == 0 and res.end == END_STEP_LIMIT
