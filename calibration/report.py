@@ -25,8 +25,8 @@ def format_table(values: np.ndarray, std: np.ndarray, paper: np.ndarray = PAPER_
     Errors outside the tolerance (1 cm, 1 cm, 1.5°) are marked with ``!``.
     """
     ok = within_tolerance(values, paper)
-    head = "gait " + " | ".join(f"{c + (' cm' if c != 'dH' else ' deg'):^27}" for c in COLUMNS)
-    sub = "     " + " | ".join(f"{'sim ± std':>13} {'paper':>6} {'err':>6}" for _ in COLUMNS)
+    head = "gait " + " |".join(f"{c + (' cm' if c != 'dH' else ' deg'):^28}" for c in COLUMNS)
+    sub = "     " + " |".join(f"{'sim ± std':>13} {'paper':>6} {'err':>6} " for _ in COLUMNS)
     lines = ["Figure 4, rebuilt in MuJoCo (sim = mean of the measured cycles):", head, sub]
     for block in (range(0, 8), range(8, 16)):
         lines.append("-" * len(sub))
