@@ -427,7 +427,8 @@ class Recording:
             name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}"
             if name.startswith(prefix):
                 ids.append(b)
-                names.append(_entity_part(name[len(prefix) :] or name))
+                # The body named exactly ``prefix`` is an attachment frame (dm_control.mjcf).
+                names.append(_entity_part(name[len(prefix) :] or "attachment_frame"))
         return ids, names
 
     def log_robot_model(self, model: Any, *, prefix: str = "", entity: str = "robot") -> None:

@@ -656,6 +656,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # Nothing here renders: keep dm_control from probing for an X display (GLFW warnings).
+    os.environ.setdefault("MUJOCO_GL", "disable")
     args = build_parser().parse_args(argv)
     if args.workers is not None and args.workers < 1:
         print("servobot reproduce: --workers must be ≥ 1", file=sys.stderr)
