@@ -1,12 +1,13 @@
 """Fit the gait rows so that the physics reproduces Figure 4 (``servobot calibrate --fit``).
 
-Each gait is fitted on its own (scipy.optimize Nelder-Mead) over three of its row parameters,
-``(left, right, yaw)`` (see ``servo_mj.gaits``); ``lift`` stays as set. One evaluation runs the
-exact calibration walk of that gait (``measure.measure_gait``: settling cycles, then
-``cycles`` measured cycles, same seed and noise) and scores the mean (F, T, dH) against the
-paper with residuals scaled by the tolerances (1 cm, 1 cm, 1.5°). The search stops early once
-every scaled residual is below ``FitSettings.stop_residual``. Gait 7 (stand still) has no
-parameters to fit. The stance sweep is kept inside the thrust servos' ctrlrange by a penalty.
+Each gait is fitted on its own (scipy.optimize Nelder-Mead) over four of its row parameters,
+``(left, right, left_offset, right_offset)`` (see ``servo_mj.gaits``); ``lift`` stays as set.
+One evaluation runs the exact calibration walk of that gait (``measure.measure_gait``:
+settling cycles, then ``cycles`` measured cycles, same seed and noise) and scores the mean
+(F, T, dH) against the paper with residuals scaled by the tolerances (1 cm, 1 cm, 1.5°). The
+search stops early once every scaled residual is below ``FitSettings.stop_residual``. Gait 7
+(stand still) has no parameters to fit. A penalty keeps the sweeps inside the thrust servos'
+ctrlrange.
 """
 
 from __future__ import annotations
@@ -47,8 +48,8 @@ class FitSettings:
     """Evaluations per gait at most."""
     stop_residual: float = 0.3
     """Stop once every |error| / tolerance is below this."""
-    step: tuple[float, float, float] = (0.12, 0.12, 0.06)
-    """Initial simplex steps of (left, right, yaw)."""
+    step: tuple[float, float, float, float] = (0.12, 0.12, 0.06, 0.06)
+    """Initial simplex steps of (left, right, left_offset, right_offset)."""
 
 
 class _Done(Exception):
@@ -66,19 +67,25 @@ def fit_gait(
     settings: FitSettings = FitSettings(),
     target: np.ndarray | None = None,
     log: Callable[[str], None] | None = None,
-) -> tuple[tuple[float, float, float, float], np.ndarray, int]:
-    """Fit one gait's (left, right, yaw). Returns (row, measured mean (3,), evaluations)."""
+) -> tuple[tuple[float, ...], np.ndarray, int]:
+    """Fit one gait's (left, right, left_offset, right_offset).
+
+    Returns (row, measured mean (F, T, dH), evaluations)."""
     g = check_gait(gait)
     target = PAPER_TABLE[g] if target is None else np.asarray(target, dtype=float)
-    lift = library.rows[g][3]
+    lift = library.rows[g][4]
     model, _ = load_robot(scene=True)
     best: dict = {"cost": np.inf, "x": None, "mean": None, "n": 0}
 
     def cost(x: np.ndarray) -> float:
-        left, right, yaw = (float(v) for v in x)
-        reach = abs(yaw) + library.stride_rad * max(abs(left), abs(right))
+        params = tuple(float(v) for v in x)
+        left, right, left_offset, right_offset = params
+        reach = max(
+            abs(left_offset) + library.stride_rad * abs(left),
+            abs(right_offset) + library.stride_rad * abs(right),
+        )
         penalty = 100.0 * max(0.0, reach - THRUST_LIMIT_RAD) ** 2
-        lib = library.with_row(g, (left, right, yaw, lift))
+        lib = library.with_row(g, (*params, lift))
         per_cycle = measure_gait(
             g,
             cycles=settings.cycles,
@@ -93,7 +100,7 @@ def fit_gait(
         c = float(r @ r) + penalty
         best["n"] += 1
         if c < best["cost"]:
-            best.update(cost=c, x=(left, right, yaw), mean=mean)
+            best.update(cost=c, x=params, mean=mean)
             if log:
                 log(f"gait {g} eval {best['n']}: row {np.round(x, 4)} -> {np.round(mean, 2)}")
             if penalty == 0.0 and np.all(np.abs(r) < settings.stop_residual):
@@ -102,14 +109,13 @@ def fit_gait(
             raise _Done
         return c
 
-    x0 = np.array(library.rows[g][:3])
+    x0 = np.array(library.rows[g][:4])
     simplex = np.vstack([x0, x0 + np.diag(settings.step)])
     try:
         minimize(cost, x0, method="Nelder-Mead", options={"initial_simplex": simplex})
     except _Done:
         pass
-    left, right, yaw = best["x"]
-    return (left, right, yaw, lift), best["mean"], best["n"]
+    return (*best["x"], lift), best["mean"], best["n"]
 
 
 def _fit_one(args: tuple) -> tuple[int, tuple, np.ndarray, int]:

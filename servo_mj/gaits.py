@@ -1,22 +1,23 @@
 """The 16 gait cycles of the ServoBot as documented data (paper §III, Figure 4).
 
 A gait cycle is a list of servo activation frames, each held ``PhysicsSettings.frame_s``
-(100 ms). Every walking gait is the same 16-frame tripod pattern (``PATTERN``): tripod A
-(LF, RM, LH) is in stance during frames 0-7 while tripod B (RF, LM, RH) swings, then they swap
-(B runs the pattern 8 frames later). A gait is one row of four numbers:
+(100 ms). Every walking gait is the same 16-frame tripod pattern (``PATTERN``), which starts
+and ends in the home posture: tripod A (LF, RM, LH) strides in the middle of the cycle,
+tripod B (RF, LM, RH) in its first and last quarter. A gait is one row of five numbers:
 
 - ``left``, ``right``: stride of each side's thrust servos, as a fraction of the full tripod
   sweep ``±stride_rad``. 1 = full stride; ``1 - p`` = the thrust activations of that side
   interrupted for a fraction ``p`` of the cycle (the paper's turn effectors; a continuous
   scale so that the fit is smooth); 0 = thrust fully interrupted; < 0 = reverse thrust.
-- ``yaw``: offset of every stance sweep, rad, as if all hips were turned anticlockwise by it
-  (left sweeps shift back, right sweeps forward). It makes the feet move sideways during
-  stance and so produces the sideways drift T of the turn gaits.
+- ``left_offset``, ``right_offset``: forward offset of each side's sweep, rad (the sweep runs
+  ``offset ± stride * stride_rad``). A forward-shifted sweep moves the stance feet outward as
+  they go back, pushing the body toward the other side: on the thrusting side of a turn it
+  produces the sideways drift T of the turn gaits.
 - ``lift``: scale of the lift pattern (1 = tripod lift, 0 = no lift: gait 7 stands still).
 
-Targets, per leg and frame (``u``, ``l`` from ``PATTERN`` at the leg's phase):
-``thrust = side * (-yaw) + stride_rad * stride_side * u`` with the left-side centre ``-yaw`` and
-the right-side centre ``+yaw``; ``lift = lift_rad * lift * l`` (positive thrust = foot forward,
+Targets, per leg and frame (``u``, ``l``, ``y`` from ``PATTERN`` for the leg's tripod):
+``thrust = offset_side * y + stride_rad * stride_side * u``;
+``lift = lift_rad * lift * l`` (positive thrust = foot forward,
 positive lift = foot up, on both sides). ``GaitLibrary.frames`` expands a row into an
 ``(n_frames, 12)`` array in actuator order (``constants.actuator_names``).
 
@@ -45,41 +46,56 @@ STRIDE_RAD = 0.47
 LIFT_RAD = 0.35
 """Lift of a swinging leg, rad (about 2.8 cm foot clearance) [assumed]."""
 
-# One leg's 16-frame tripod pattern, frame by frame (tripod A's phase; tripod B is shifted 8):
-#   u = thrust position in units of the stride (+1 front, -1 back), l = lift (1 up, 0 down).
-#   Frames 0-7 stance: sweep front -> back on the ground. Frames 8-15 swing: lift, carry the
-#   foot forward in the air, put it down at the front in the last frame.
+# The 16-frame tripod pattern, one line per frame (100 ms each). A gait cycle starts and ends
+# in the home posture (all legs at 0, all feet down), as the paper defines a gait cycle: the
+# legs "begin moving and eventually return to their original position". So a cycle does not
+# depend on which gait ran before it. Per tripod: u = thrust position in units of the stride
+# (+1 front, -1 back), l = lift (1 up, 0 down), y = share of the side's offset (0 at home).
+# Tripod A swings home -> front, strides front -> back, swings back -> home; tripod B strides
+# home -> back, swings back -> front, strides front -> home. Each tripod strides 2 units.
 # fmt: off
-#            |------------------ stance -----------------|------------------ swing -------------|
-PATTERN_U = (0.75, 0.5, 0.25, 0.0, -0.25, -0.5, -0.75, -1.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.0, 1.0,
-             1.0)
-PATTERN_L = (0.0,  0.0, 0.0,  0.0, 0.0,   0.0,  0.0,   0.0,  1.0,  1.0,  1.0, 1.0, 1.0, 1.0, 1.0,
-             0.0)
+PATTERN: tuple[tuple[float, ...], ...] = (
+    # uA     lA   yA     uB     lB   yB        A            B
+    (0.5,   1.0, 0.5,  -0.25,  0.0, 0.25),  # swing        stance
+    (1.0,   1.0, 1.0,  -0.5,   0.0, 0.5),   # swing        stance
+    (1.0,   1.0, 1.0,  -0.75,  0.0, 0.75),  # swing        stance
+    (1.0,   0.0, 1.0,  -1.0,   0.0, 1.0),   # touch down   stance end
+    (0.75,  0.0, 1.0,  -1.0,   1.0, 1.0),   # stance       lift
+    (0.5,   0.0, 1.0,  -0.5,   1.0, 1.0),   # stance       swing
+    (0.25,  0.0, 1.0,   0.0,   1.0, 1.0),   # stance       swing
+    (0.0,   0.0, 1.0,   0.5,   1.0, 1.0),   # stance       swing
+    (-0.25, 0.0, 1.0,   1.0,   1.0, 1.0),   # stance       swing
+    (-0.5,  0.0, 1.0,   1.0,   1.0, 1.0),   # stance       swing
+    (-0.75, 0.0, 1.0,   1.0,   1.0, 1.0),   # stance       swing
+    (-1.0,  0.0, 1.0,   1.0,   0.0, 1.0),   # stance end   touch down
+    (-1.0,  1.0, 1.0,   0.75,  0.0, 0.75),  # lift         stance
+    (-0.5,  1.0, 0.5,   0.5,   0.0, 0.5),   # swing        stance
+    (0.0,   1.0, 0.0,   0.25,  0.0, 0.25),  # swing        stance
+    (0.0,   0.0, 0.0,   0.0,   0.0, 0.0),   # home         home
+)
 # fmt: on
-TRIPOD_SHIFT = 8
-"""Tripod B runs the pattern this many frames after tripod A."""
 
-PARAM_NAMES = ("left", "right", "yaw", "lift")
+PARAM_NAMES = ("left", "right", "left_offset", "right_offset", "lift")
 
 # fmt: off
-# gait: (left, right, yaw rad, lift)   kind                     [hand-set start, fitted in JSON]
-DEFAULT_ROWS: dict[int, tuple[float, float, float, float]] = {
-    0:  (0.95, 1.00, 0.02, 1.0),   # tripod, slight left turn (left thrust 5 % interrupted)
-    1:  (0.80, 1.00, 0.05, 1.0),   # left turn
-    2:  (0.55, 1.00, 0.10, 1.0),   # left turn
-    3:  (0.30, 1.00, 0.15, 1.0),   # left turn
-    4:  (0.05, 1.00, 0.20, 1.0),   # left turn
-    5:  (-0.20, 1.00, 0.20, 1.0),  # sharpest left turn (a little reverse thrust on the left)
-    6:  (-0.60, 0.60, 0.00, 1.0),  # rotate left in place (sides thrust in opposite directions)
-    7:  (0.00, 0.00, 0.00, 0.0),   # stand still
-    8:  (1.00, 0.95, -0.02, 1.0),  # tripod, slight right turn
-    9:  (1.00, 0.80, -0.05, 1.0),  # right turn
-    10: (1.00, 0.55, -0.10, 1.0),  # right turn
-    11: (1.00, 0.30, -0.15, 1.0),  # right turn
-    12: (1.00, 0.05, -0.20, 1.0),  # right turn
-    13: (1.00, -0.20, -0.20, 1.0), # sharpest right turn
-    14: (0.60, -0.60, 0.00, 1.0),  # rotate right in place
-    15: (-1.00, -1.00, 0.00, 1.0), # walk backwards
+# gait: (left, right, left_offset, right_offset rad, lift)   [hand-set start, fitted in JSON]
+DEFAULT_ROWS: dict[int, tuple[float, float, float, float, float]] = {
+    0:  (0.95, 1.00, 0.00, 0.02, 1.0),    # tripod, slight left turn (left thrust 5 % cut)
+    1:  (0.80, 1.05, 0.00, 0.10, 1.0),    # left turn
+    2:  (0.55, 1.10, 0.00, 0.20, 1.0),    # left turn
+    3:  (0.35, 1.15, 0.00, 0.35, 1.0),    # left turn
+    4:  (0.15, 1.15, 0.00, 0.50, 1.0),    # left turn
+    5:  (-0.05, 1.15, 0.00, 0.50, 1.0),   # sharpest left turn (a little reverse thrust)
+    6:  (-0.65, 0.65, 0.00, 0.00, 1.0),   # rotate left in place (sides thrust oppositely)
+    7:  (0.00, 0.00, 0.00, 0.00, 0.0),    # stand still
+    8:  (1.00, 0.95, 0.02, 0.00, 1.0),    # tripod, slight right turn
+    9:  (1.05, 0.80, 0.10, 0.00, 1.0),    # right turn
+    10: (1.10, 0.55, 0.20, 0.00, 1.0),    # right turn
+    11: (1.15, 0.35, 0.35, 0.00, 1.0),    # right turn
+    12: (1.15, 0.15, 0.50, 0.00, 1.0),    # right turn
+    13: (1.15, -0.05, 0.50, 0.00, 1.0),   # sharpest right turn
+    14: (0.65, -0.65, 0.00, 0.00, 1.0),   # rotate right in place
+    15: (-1.05, -1.05, 0.00, 0.00, 1.0),  # walk backwards
 }
 # fmt: on
 GAIT_KIND = {
@@ -103,27 +119,22 @@ def check_gait(gait: Any) -> int:
     return g
 
 
-def _leg_phase_matrix() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per frame and leg: pattern u, pattern l (16, 6), and side sign (+1 left, -1 right)."""
-    n = len(PATTERN_U)
-    u = np.empty((n, len(LEGS)))
-    lift = np.empty((n, len(LEGS)))
-    for j, leg in enumerate(LEGS):
-        shift = 0 if leg in TRIPOD_A else TRIPOD_SHIFT
-        idx = (np.arange(n) + shift) % n
-        u[:, j] = np.asarray(PATTERN_U)[idx]
-        lift[:, j] = np.asarray(PATTERN_L)[idx]
+def _leg_phase_matrix() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame and leg (16, 6): pattern u, l, y; and the side sign (+1 left, -1 right)."""
+    table = np.asarray(PATTERN)
+    cols = [(0, 1, 2) if leg in TRIPOD_A else (3, 4, 5) for leg in LEGS]
+    u = np.stack([table[:, c[0]] for c in cols], axis=1)
+    lift = np.stack([table[:, c[1]] for c in cols], axis=1)
+    y = np.stack([table[:, c[2]] for c in cols], axis=1)
     side = np.array([1.0 if leg[0] == "L" else -1.0 for leg in LEGS])
-    return u, lift, side
+    return u, lift, y, side
 
 
 @dataclass(frozen=True)
 class GaitLibrary:
     """The 16 gait rows plus the pattern amplitudes; expands rows into servo frames."""
 
-    rows: Mapping[int, tuple[float, float, float, float]] = field(
-        default_factory=lambda: dict(DEFAULT_ROWS)
-    )
+    rows: Mapping[int, tuple[float, ...]] = field(default_factory=lambda: dict(DEFAULT_ROWS))
     stride_rad: float = STRIDE_RAD
     lift_rad: float = LIFT_RAD
     meta: Mapping[str, Any] = field(default_factory=dict)
@@ -135,7 +146,7 @@ class GaitLibrary:
             raise ValueError(f"gait library is missing gaits {missing}")
         for g, r in rows.items():
             if len(r) != len(PARAM_NAMES) or not np.all(np.isfinite(r)):
-                raise ValueError(f"gait {g}: expected 4 finite numbers {PARAM_NAMES}, got {r}")
+                raise ValueError(f"gait {g}: expected finite numbers {PARAM_NAMES}, got {r}")
         object.__setattr__(self, "rows", rows)
 
     @classmethod
@@ -178,14 +189,14 @@ class GaitLibrary:
         return {
             **dict(self.meta),
             "legs": list(LEGS),
-            "pattern_u": list(PATTERN_U),
-            "pattern_l": list(PATTERN_L),
+            "pattern": [list(r) for r in PATTERN],
+            "pattern_columns": ["uA", "lA", "yA", "uB", "lB", "yB"],
             "stride_rad": self.stride_rad,
             "lift_rad": self.lift_rad,
             "gaits": gaits,
         }
 
-    def with_row(self, gait: int, row: tuple[float, float, float, float]) -> GaitLibrary:
+    def with_row(self, gait: int, row: tuple[float, ...]) -> GaitLibrary:
         """A copy with one gait's row replaced."""
         rows = dict(self.rows)
         rows[check_gait(gait)] = tuple(float(v) for v in row)
@@ -193,10 +204,11 @@ class GaitLibrary:
 
     def frames(self, gait: int) -> np.ndarray:
         """Servo targets of one cycle of ``gait``: (n_frames, 12) rad, actuator order."""
-        left, right, yaw, lift = self.rows[check_gait(gait)]
-        u, lv, side = _leg_phase_matrix()
+        left, right, left_offset, right_offset, lift = self.rows[check_gait(gait)]
+        u, lv, y, side = _leg_phase_matrix()
         stride = np.where(side > 0, left, right)
-        thrust = -side * yaw + self.stride_rad * stride * u
+        offset = np.where(side > 0, left_offset, right_offset)
+        thrust = offset * y + self.stride_rad * stride * u
         out = np.empty((u.shape[0], 2 * len(LEGS)))
         out[:, 0::2] = thrust
         out[:, 1::2] = self.lift_rad * lift * lv

@@ -42,12 +42,12 @@ def test_measure_rejects_bad_arguments() -> None:
 
 def test_fit_reduces_the_error_of_a_detuned_gait() -> None:
     lib = GaitLibrary.load()
-    left, right, yaw, lift = lib.rows[2]
-    detuned = lib.with_row(2, (left + 0.3, right, yaw, lift))  # much too little turn
+    left, right, left_offset, right_offset, lift = lib.rows[2]
+    detuned = lib.with_row(2, (left + 0.3, right, left_offset, right_offset, lift))  # less turn
     fs = FitSettings(cycles=2, max_evals=12, stop_residual=0.0)
     before = measure_gait(2, cycles=2, library=detuned, seed=fs.seed).mean(axis=0)
     row, after, n = fit_gait(2, detuned, fs)
-    assert n == 12 and len(row) == 4 and row[3] == lift
+    assert n == 12 and len(row) == 5 and row[4] == lift
     cost = lambda v: float(np.sum(scaled_residual(v, PAPER_TABLE[2]) ** 2))  # noqa: E731
     assert cost(after) < cost(before)
 

@@ -48,12 +48,17 @@ def test_frames_shape_range_and_unknown_gaits() -> None:
             LIB.frames(bad)
 
 
-def test_tripod_pattern_keeps_three_feet_down_and_alternates() -> None:
-    lift = GaitLibrary.default().frames(0)[:, 1::2]  # (16, 6) lift targets, leg order
+def test_tripod_pattern_keeps_three_feet_down_and_returns_home() -> None:
+    lib = GaitLibrary.default()
+    lift = lib.frames(0)[:, 1::2]  # (16, 6) lift targets, leg order LF LM LH RF RM RH
     down = lift <= 1e-12
     assert np.all(down.sum(axis=1) >= 3)
-    # LF, RM, LH (legs 0, 4, 2) lift in the second half, RF, LM, RH (3, 1, 5) in the first
-    assert np.all(down[:8][:, [0, 2, 4]]) and np.all(down[8:][:, [1, 3, 5]])
+    # tripod A = LF, LH, RM (legs 0, 2, 4) strides mid-cycle; B = LM, RF, RH at both ends
+    assert np.all(down[3:12][:, [0, 2, 4]]) and not np.any(down[4:11][:, [1, 3, 5]])
+    assert np.all(down[[0, 1, 2, 12, 13, 14]][:, [1, 3, 5]])
+    # every gait cycle ends in the home posture (paper: legs return to their original position)
+    for g in range(N_GAITS):
+        np.testing.assert_array_equal(LIB.frames(g)[-1], GaitLibrary.home())
 
 
 def test_library_round_trips_and_rejects_malformed_files(tmp_path) -> None:
@@ -145,3 +150,19 @@ def test_physics_faults_raise_physics_error_naming_gait_and_cycle() -> None:
         bot.run_gait(0)
     with pytest.raises(ValueError, match="finite"):
         bot.place(math.nan, 0.0, 0.0)
+
+
+def test_a_cycle_hardly_depends_on_the_gait_before_it() -> None:
+    """Cycles start and end at home, so gait b after gait a moves about as b after b."""
+    m, d = load_robot()
+    bot = ServoBot(m, d, gaits=LIB)
+
+    def after(a: int, b: int) -> np.ndarray:
+        bot.place(0.0, 0.0, 0.0)
+        bot.run_gait(a)
+        bot.run_gait(a)
+        return np.array(bot.run_gait(b).ftdh)
+
+    for a, b in ((0, 4), (4, 0), (12, 0), (0, 15)):
+        diff = after(a, b) - after(b, b)
+        assert np.all(np.abs(diff) < (1.0, 1.0, 3.0)), (a, b, diff)
