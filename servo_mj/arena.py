@@ -3,7 +3,7 @@
 World frame: metres, x east, y north, z up, origin at the arena's south-west corner (so arena
 unit u sits at u / 100 m). The arena holds a floor, four walls whose inner faces are the arena
 edges, the power-station block (``station_width`` wide, protruding ``station_depth_m`` from the
-east wall, centred at ``station_y``), and the two light sources (a MuJoCo ``light`` each, with
+east wall, centred at ``station_y``; low enough for the sensor rays to pass over), and the two light sources (a MuJoCo ``light`` each, with
 a non-colliding marker above the wall tops so the rangefinder rays never see it).
 
 The robot MJCF is attached through an attachment frame that carries the free joint: the
@@ -45,8 +45,11 @@ class ArenaSettings:
     """Wall thickness, built outwards from the arena edge."""
     station_depth_m: float = 0.20
     """How far the station block protrudes from the east wall (front face x = 4.80 m)."""
-    station_height_m: float = 0.30
-    """Height of the station block."""
+    station_height_m: float = 0.10
+    """Height of the station block: above the docking probes (0.072 m) so they meet its
+    face, below the rangefinder rays (≈ 0.15 m) so the object sensors see the wall behind it,
+    as the table simulation does. A block taller than the rays makes the sensors see it up
+    to 20 units before the table sees the wall (SPEC §3 "In MuJoCo", accepted difference)."""
     light_height_m: float = 0.40
     """Height of the light sources and their markers (above the walls and the ray sites)."""
     light_marker_radius_m: float = 0.02
@@ -55,10 +58,10 @@ class ArenaSettings:
     """How far the floor plane extends beyond the arena on each side."""
     rays_per_span: int = 10
     """Rangefinder rays per object-sensor span, both span ends included."""
-    sensor_height_m: float = 0.06
-    """Height of the rangefinder sites above the torso frame origin: above the servos and the
-    lifted legs (≤ 0.045 m), 0.12 m above the floor, so a ray must tilt ~13° to meet the floor
-    within 0.5 m."""
+    sensor_height_m: float = 0.09
+    """Height of the rangefinder sites above the torso frame origin (≈ 0.15 m above the
+    floor): above the servos and lifted legs (≤ 0.045 m), 5 cm above the station block, and
+    a ray must pitch down ~17° to meet the floor within 0.5 m."""
     colours: dict[str, tuple[float, float, float, float]] = field(
         default_factory=lambda: {
             "floor": (0.82, 0.80, 0.75, 1.0),

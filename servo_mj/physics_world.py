@@ -138,4 +138,83 @@ class PhysicsWorld:
         return (np.where(left < 0, -1.0, left * 100.0), np.where(right < 0, -1.0, right * 100.0))
 
 
-__all__ = ["Frame", "PhysicsWorld", "colony"]
+def sample_poses(
+    n: int, rng: np.random.Generator, world: WorldSettings, *, band: float | None = None
+) -> np.ndarray:
+    """(n, 3) poses outside the kill zone: uniform over the arena, or (``band`` cm) with the
+    centre within ``band`` of the kill-zone edge, i.e. near a wall, where sensors change."""
+    lo, hi = world.kill_margin, world.arena_size - world.kill_margin
+    out = []
+    while len(out) < n:
+        x, y, h = rng.uniform(lo, hi), rng.uniform(lo, hi), rng.uniform(0.0, 360.0)
+        if band is None or min(x - lo, hi - x, y - lo, hi - y) <= band:
+            out.append((x, y, h))
+    return np.asarray(out)
+
+
+def near_station(x: float, y: float, world: WorldSettings, arena: ArenaSettings) -> bool:
+    """Whether the station block can be within object range while the wall behind it is not."""
+    depth = arena.station_depth_m * 100.0
+    reach = world.object_range + depth
+    return x > world.arena_size - reach and abs(y - world.station_y) < (
+        world.station_width / 2 + world.object_range
+    )
+
+
+def sensor_agreement(
+    poses: np.ndarray, *, world: WorldSettings | None = None, arena: ArenaSettings | None = None
+) -> dict[str, Any]:
+    """Place the robot at each pose and compare its physics object sensors with the SPEC's
+    geometric sensors at its physical pose (after settling). Light sensors use the SPEC rule
+    on the same pose in both worlds, so they agree by construction and are not counted."""
+    world = world or WorldSettings()
+    arena = arena or ArenaSettings()
+    n = agree = 0
+    n_far = agree_far = 0
+    misses: list[dict[str, Any]] = []
+    for x, y, h in np.asarray(poses, dtype=float):
+        pw = PhysicsWorld(x, y, h, world=world, arena=arena)
+        px, py, ph = pw.pose()
+        got, want = pw.object_sensors(), geometry.object_sensors(px, py, ph, world)
+        n += 1
+        agree += got == want
+        if not near_station(px, py, world, arena):
+            n_far += 1
+            agree_far += got == want
+        if got != want:
+            left, right = pw.ray_ranges_cm()
+            hits = [r[r >= 0].min(initial=np.inf) for r in (left, right)]
+            misses.append(
+                {"pose": [px, py, ph], "physics": got, "geometry": want, "nearest_cm": hits}
+            )
+    return {
+        "poses": n,
+        "agree": agree / n if n else float("nan"),
+        "poses_away_from_station": n_far,
+        "agree_away_from_station": agree_far / n_far if n_far else float("nan"),
+        "disagreements": misses,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m servo_mj.physics_world [N] [SEED]``: sensor agreement on sampled poses."""
+    import json
+    import sys
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    n = int(args[0]) if args else 200
+    seed = int(args[1]) if len(args) > 1 else 0
+    world = WorldSettings()
+    rng = np.random.default_rng(seed)
+    for name, band in (("uniform", None), ("near a wall (within 75 cm of the kill zone)", 75.0)):
+        res = sensor_agreement(sample_poses(n, rng, world, band=band), world=world)
+        res["disagreements"] = res["disagreements"][:10]
+        print(name, json.dumps(res, default=float, indent=1))
+    return 0
+
+
+__all__ = ["Frame", "PhysicsWorld", "colony", "near_station", "sample_poses", "sensor_agreement"]
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
