@@ -3,8 +3,9 @@
 World frame: metres, x east, y north, z up, origin at the arena's south-west corner (so arena
 unit u sits at u / 100 m). The arena holds a floor, four walls whose inner faces are the arena
 edges, the power-station block (``station_width`` wide, protruding ``station_depth_m`` from the
-east wall, centred at ``station_y``; low enough for the sensor rays to pass over), and the two light sources (a MuJoCo ``light`` each, with
-a non-colliding marker above the wall tops so the rangefinder rays never see it).
+east wall, centred at ``station_y``; low enough for the sensor rays to pass over), and the two
+light sources (a MuJoCo ``light`` each, with a non-colliding marker above the wall tops so the
+rangefinder rays never see it).
 
 The robot MJCF is attached through an attachment frame that carries the free joint: the
 robot's own free joint is removed and the torso's placement moved onto the frame, so that the
@@ -62,6 +63,9 @@ class ArenaSettings:
     """Height of the rangefinder sites above the torso frame origin (≈ 0.15 m above the
     floor): above the servos and lifted legs (≤ 0.045 m), 5 cm above the station block, and
     a ray must pitch down ~17° to meet the floor within 0.5 m."""
+    robot_clearance_cm: float = 26.0
+    """A robot centre closer than this to the station block overlaps it (probe reach 25.2 cm):
+    such start poses are refused."""
     colours: dict[str, tuple[float, float, float, float]] = field(
         default_factory=lambda: {
             "floor": (0.82, 0.80, 0.75, 1.0),
@@ -105,6 +109,21 @@ def default_robot() -> RobotSpec:
         free_joint=c.FREE_JOINT,
         scene_xml=Path(c.SCENE_XML),
     )
+
+
+def station_distance_cm(x: float, y: float, world: WorldSettings, arena: ArenaSettings) -> float:
+    """Distance (cm) from (x, y) to the station block's footprint (0 inside it)."""
+    x0 = world.arena_size - arena.station_depth_m * CM_PER_M
+    y0 = world.station_y - world.station_width / 2
+    y1 = world.station_y + world.station_width / 2
+    dx = max(x0 - x, 0.0, x - world.arena_size)
+    dy = max(y0 - y, 0.0, y - y1)
+    return float(np.hypot(dx, dy))
+
+
+def overlaps_station(x: float, y: float, world: WorldSettings, arena: ArenaSettings) -> bool:
+    """Whether a robot centred at (x, y) would overlap the station block (any heading)."""
+    return station_distance_cm(x, y, world, arena) < arena.robot_clearance_cm
 
 
 def _m(units: float) -> float:
@@ -287,5 +306,7 @@ __all__ = [
     "compile_arena",
     "default_robot",
     "match_scene",
+    "overlaps_station",
+    "station_distance_cm",
     "warnings_raised",
 ]

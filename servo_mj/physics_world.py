@@ -24,7 +24,7 @@ import numpy as np
 
 from evolve import geometry
 from evolve.settings import WorldSettings
-from servo_mj.arena import ArenaModel, ArenaSettings, RobotSpec, compile_arena
+from servo_mj.arena import ArenaModel, ArenaSettings, RobotSpec, compile_arena, overlaps_station
 from servo_mj.sensors import physics_object_sensors, ray_ranges_m
 
 _CACHE: dict[tuple, ArenaModel] = {}
@@ -139,14 +139,23 @@ class PhysicsWorld:
 
 
 def sample_poses(
-    n: int, rng: np.random.Generator, world: WorldSettings, *, band: float | None = None
+    n: int,
+    rng: np.random.Generator,
+    world: WorldSettings,
+    arena: ArenaSettings | None = None,
+    *,
+    band: float | None = None,
 ) -> np.ndarray:
-    """(n, 3) poses outside the kill zone: uniform over the arena, or (``band`` cm) with the
-    centre within ``band`` of the kill-zone edge, i.e. near a wall, where sensors change."""
+    """(n, 3) poses outside the kill zone and clear of the station block: uniform over the
+    arena, or (``band`` cm) with the centre within ``band`` of the kill-zone edge, i.e. near a
+    wall, where the sensors change."""
+    arena = arena or ArenaSettings()
     lo, hi = world.kill_margin, world.arena_size - world.kill_margin
     out = []
     while len(out) < n:
         x, y, h = rng.uniform(lo, hi), rng.uniform(lo, hi), rng.uniform(0.0, 360.0)
+        if overlaps_station(x, y, world, arena):
+            continue
         if band is None or min(x - lo, hi - x, y - lo, hi - y) <= band:
             out.append((x, y, h))
     return np.asarray(out)

@@ -43,7 +43,7 @@ from evolve.io import atomic_write, atomic_write_json, atomic_write_text
 from evolve.settings import WorldSettings
 from evolve.table import validate_table
 from evolve.world import TableWorld
-from servo_mj.arena import ArenaSettings
+from servo_mj.arena import ArenaSettings, overlaps_station
 from servo_mj.pool import Executor, Failed, make_executor
 
 MODE = "coverage"
@@ -74,8 +74,15 @@ def inner_square_count(world: WorldSettings) -> int:
     return (world.grid_n - 2) ** 2
 
 
-def check_start(start: Any, world: WorldSettings, *, name: str = "start") -> tuple[float, ...]:
-    """Return a start pose as (x, y, h) floats, or raise ``ValidationError`` naming the problem."""
+def check_start(
+    start: Any,
+    world: WorldSettings,
+    arena: ArenaSettings | None = None,
+    *,
+    name: str = "start",
+) -> tuple[float, ...]:
+    """Return a start pose as (x, y, h) floats, or raise ``ValidationError`` naming the problem
+    (outside the arena, in the kill zone, overlapping the station block)."""
     try:
         x, y, h = (float(v) for v in start)
     except (TypeError, ValueError) as exc:
@@ -92,6 +99,12 @@ def check_start(start: Any, world: WorldSettings, *, name: str = "start") -> tup
         raise ValidationError(
             f"{name}: start ({x:g}, {y:g}) lies in the kill zone "
             f"(within {world.kill_margin:g} units of a wall)"
+        )
+    arena = arena or ArenaSettings()
+    if overlaps_station(x, y, world, arena):
+        raise ValidationError(
+            f"{name}: start ({x:g}, {y:g}) overlaps the power-station block (robot centre "
+            f"within {arena.robot_clearance_cm:g} units of it)"
         )
     return x, y, h % 360.0
 
@@ -292,7 +305,7 @@ def validate(
     starts_arr = np.asarray(starts, dtype=float)
     if starts_arr.ndim != 2 or starts_arr.shape[1] != 3 or len(starts_arr) == 0:
         raise ValidationError(f"starts must be an (N, 3) array of x, y, h, got {starts_arr.shape}")
-    poses = [check_start(s, world, name=f"start {k}") for k, s in enumerate(starts_arr)]
+    poses = [check_start(s, world, arena, name=f"start {k}") for k, s in enumerate(starts_arr)]
     if max_steps is not None and max_steps < 0:
         raise ValidationError(f"max_steps must be >= 0, got {max_steps}")
     out = None if out_dir is None else Path(out_dir)
