@@ -174,7 +174,14 @@ class GaitLibrary:
             stride, lift = float(doc["stride_rad"]), float(doc["lift_rad"])
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{name}: malformed gait-parameter file ({exc!r})") from exc
-        meta = {k: v for k, v in doc.items() if k not in ("gaits", "stride_rad", "lift_rad")}
+        if "legs" in doc and list(doc["legs"]) != list(LEGS):
+            raise ValueError(f"{name}: leg order {doc['legs']} is not {list(LEGS)}")
+        if "pattern" in doc and np.asarray(doc["pattern"], dtype=float).tolist() != [
+            list(r) for r in PATTERN
+        ]:
+            raise ValueError(f"{name}: fitted for a different tripod pattern; refit (--fit)")
+        skip = ("gaits", "stride_rad", "lift_rad", "legs", "pattern", "pattern_columns")
+        meta = {k: v for k, v in doc.items() if k not in skip}
         try:
             return cls(rows, stride, lift, meta)
         except ValueError as exc:

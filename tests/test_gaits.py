@@ -70,6 +70,11 @@ def test_library_round_trips_and_rejects_malformed_files(tmp_path) -> None:
     (tmp_path / "short.json").write_text(json.dumps(bad))
     with pytest.raises(ValueError, match="missing gaits \\[15\\]"):
         GaitLibrary.load(tmp_path / "short.json")
+    other = LIB.to_dict()
+    other["pattern"][0][0] = 0.4
+    (tmp_path / "other.json").write_text(json.dumps(other))
+    with pytest.raises(ValueError, match="different tripod pattern"):
+        GaitLibrary.load(tmp_path / "other.json")
     (tmp_path / "junk.json").write_text("{not json")
     with pytest.raises(ValueError, match="not valid JSON"):
         GaitLibrary.load(tmp_path / "junk.json")
