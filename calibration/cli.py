@@ -18,7 +18,7 @@ from pathlib import Path
 import mujoco
 
 from calibration.fit import FitSettings, fit_library
-from calibration.measure import measure_all, summarise
+from calibration.measure import DEFAULTS, CalibrationSettings, measure_all, summarise
 from calibration.report import format_table, save_figure, within_tolerance
 from evolve.io import atomic_write_json
 from evolve.table import table_to_json
@@ -26,7 +26,7 @@ from servo_mj import constants as C
 from servo_mj.executor import PhysicsError
 from servo_mj.gaits import N_GAITS, PARAMS_JSON, GaitLibrary
 from servo_mj.model import load_robot, model_sha256
-from servo_mj.settings import CALIBRATION_NOISE_RAD, PhysicsSettings
+from servo_mj.settings import PhysicsSettings
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -34,14 +34,29 @@ def _parser() -> argparse.ArgumentParser:
         prog="servobot calibrate",
         description="Measure F, T, dH of the 16 gaits in MuJoCo and compare with Figure 4.",
     )
-    p.add_argument("--cycles", type=int, default=20, help="measured cycles per gait (20)")
-    p.add_argument("--settle-cycles", type=int, default=1, help="unmeasured cycles first (1)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the servo-target noise (0)")
+    p.add_argument(
+        "--cycles",
+        type=int,
+        default=DEFAULTS.cycles,
+        help=f"measured cycles per gait ({DEFAULTS.cycles})",
+    )
+    p.add_argument(
+        "--settle-cycles",
+        type=int,
+        default=DEFAULTS.settle_cycles,
+        help=f"unmeasured cycles first ({DEFAULTS.settle_cycles})",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=DEFAULTS.seed,
+        help=f"seed of the servo-target noise ({DEFAULTS.seed})",
+    )
     p.add_argument(
         "--noise",
         type=float,
-        default=CALIBRATION_NOISE_RAD,
-        help=f"servo-target noise std, rad ({CALIBRATION_NOISE_RAD})",
+        default=DEFAULTS.noise_rad,
+        help=f"servo-target noise std, rad ({DEFAULTS.noise_rad})",
     )
     p.add_argument("--out", type=Path, default=Path("runs/calibration"), help="output folder")
     p.add_argument("--fit", action="store_true", help="fit the gait parameters to Figure 4 first")
@@ -179,6 +194,12 @@ def main(argv: list[str] | None = None) -> int:
         source="MuJoCo calibration (servobot calibrate)",
         model_sha256=model_sha256(),
         mujoco_version=mujoco.__version__,
+        calibration=CalibrationSettings(
+            cycles=args.cycles,
+            settle_cycles=args.settle_cycles,
+            seed=args.seed,
+            noise_rad=args.noise,
+        ).to_dict(),
         seed=args.seed,
         noise_rad=args.noise,
         settle_cycles=args.settle_cycles,

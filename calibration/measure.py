@@ -13,6 +13,8 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -22,9 +24,28 @@ from servo_mj.gaits import N_GAITS, GaitLibrary, check_gait
 from servo_mj.model import load_robot
 from servo_mj.settings import CALIBRATION_NOISE_RAD, PhysicsSettings
 
-START_SPACING_CM = 400.0
-"""Start poses of the 16 gaits lie on a 4 × 4 grid this far apart (so recordings do not
-overlap), heading north [chosen]."""
+
+@dataclass(frozen=True)
+class CalibrationSettings:
+    """Defaults of a calibration run (``servobot calibrate`` options) [chosen]."""
+
+    cycles: int = 20
+    """Measured cycles per gait (long enough that the mean is within ~0.3° of a 100-cycle one)."""
+    settle_cycles: int = 1
+    """Unmeasured cycles before them."""
+    seed: int = 0
+    """Seed of the servo-target noise (per gait: ``default_rng([seed, gait])``)."""
+    noise_rad: float = CALIBRATION_NOISE_RAD
+    """Std of the noise on every new servo activation, rad."""
+    start_spacing_cm: float = 400.0
+    """Start poses of the 16 gaits lie on a 4 × 4 grid this far apart, heading north (so
+    recordings do not overlap)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+DEFAULTS = CalibrationSettings()
 
 CycleCallback = Callable[[int, CycleResult, ServoBot], None]
 """``on_cycle(gait, result, bot)``, called after every measured cycle."""
@@ -32,18 +53,20 @@ FrameCallback = Callable[[int, mujoco.MjData], None]
 """``on_frame(gait, data)``, called after every 100 ms servo frame (settling included)."""
 
 
-def start_pose(gait: int) -> tuple[float, float, float]:
+def start_pose(
+    gait: int, spacing_cm: float = DEFAULTS.start_spacing_cm
+) -> tuple[float, float, float]:
     """Start pose (x cm, y cm, heading deg) of a gait's calibration walk."""
-    return (START_SPACING_CM * (gait % 4), START_SPACING_CM * (gait // 4), 0.0)
+    return (spacing_cm * (gait % 4), spacing_cm * (gait // 4), 0.0)
 
 
 def measure_gait(
     gait: int,
     *,
-    cycles: int = 20,
-    settle_cycles: int = 1,
-    seed: int = 0,
-    noise_rad: float = CALIBRATION_NOISE_RAD,
+    cycles: int = DEFAULTS.cycles,
+    settle_cycles: int = DEFAULTS.settle_cycles,
+    seed: int = DEFAULTS.seed,
+    noise_rad: float = DEFAULTS.noise_rad,
     library: GaitLibrary | None = None,
     physics: PhysicsSettings | None = None,
     model: mujoco.MjModel | None = None,
@@ -110,11 +133,11 @@ def measure_all(
 
 def measure_gaits(
     gaits: Iterable[int] = range(N_GAITS),
-    cycles: int = 20,
-    seed: int = 0,
+    cycles: int = DEFAULTS.cycles,
+    seed: int = DEFAULTS.seed,
     *,
-    settle_cycles: int = 1,
-    noise_rad: float = CALIBRATION_NOISE_RAD,
+    settle_cycles: int = DEFAULTS.settle_cycles,
+    noise_rad: float = DEFAULTS.noise_rad,
     library: GaitLibrary | None = None,
     physics: PhysicsSettings | None = None,
     workers: int = 1,
