@@ -21,12 +21,12 @@ Entity layout::
     world/<entity>/<body>[/geoms/<k>]     robot bodies (Transform3D per frame) and their shapes
     world/feet                            foot positions per frame (trace via visible range)
     world/track/<world_name>              one segment per step (trace via visible range)
-    world/pose/<world_name>               current position and heading arrow
     world/squares/<world_name>            squares reached so far
     plots/power/<world_name>              volts
     plots/sensors/<world_name>/<sensor>   0/1 per sensor
     plots/mode/<world_name>               0 coverage, 1 navigation, 2 charging
     plots/squares/<world_name>            squares reached so far
+    plots/pose/<world_name>/{x_cm,y_cm,heading_deg}   pose after each step
     plots/calibration/{F,T,dH}/gait_<g>   per measured cycle
     log/<world_name>, log/calibration     text log
 """
@@ -607,21 +607,10 @@ class Recording:
                     columns=rr.LineStrips3D.columns(strips=list(strips)),
                 )
                 pose = np.array(main.rows["pose"], dtype=np.float64)
-                origins = np.column_stack(
-                    [
-                        pose[:, 0] / UNITS_PER_M,
-                        pose[:, 1] / UNITS_PER_M,
-                        np.full(main.n, 2 * s.track_z_m),
-                    ]
-                )
-                yaw = np.radians(90.0 - pose[:, 2])
-                vecs = 0.12 * np.column_stack([np.cos(yaw), np.sin(yaw), np.zeros(main.n)])
-                self.rec.send_columns(
-                    f"world/pose/{name}",
-                    indexes=idx,
-                    columns=rr.Arrows3D.columns(origins=origins, vectors=vecs),
-                )
                 plots = {
+                    f"plots/pose/{name}/x_cm": pose[:, 0],
+                    f"plots/pose/{name}/y_cm": pose[:, 1],
+                    f"plots/pose/{name}/heading_deg": pose[:, 2],
                     f"plots/power/{name}": main.rows["power"],
                     f"plots/mode/{name}": main.rows["mode"],
                     f"plots/squares/{name}": main.rows["squares"],
@@ -672,7 +661,6 @@ class Recording:
             rr.LineStrips3D.from_fields(colors=[color], radii=0.006),
             static=True,
         )
-        log(f"world/pose/{name}", rr.Arrows3D.from_fields(colors=[color], radii=0.008), static=True)
         for path, label in (("power", "power V"), ("mode", "mode"), ("squares", "squares")):
             log(
                 f"plots/{path}/{name}",
@@ -683,6 +671,12 @@ class Recording:
             log(
                 f"plots/sensors/{name}/{sensor}",
                 rr.SeriesLines(names=[f"{sensor} {name}"], widths=[2.0 if k % 2 else 1.0]),
+                static=True,
+            )
+        for axis in ("x_cm", "y_cm", "heading_deg"):
+            log(
+                f"plots/pose/{name}/{axis}",
+                rr.SeriesLines(colors=[color], names=[f"{axis} {name}"]),
                 static=True,
             )
 
@@ -704,8 +698,10 @@ class Recording:
                 for tl in ("step", "sim_time")
             ]
         )
-        overrides = {"world/track/**": [trails], "world/feet": [trails]}
-        view3d = rrb.Spatial3DView(origin="world", name="arena", overrides=overrides)
+        # Trails: the 3D view shows everything from the start up to the time cursor, so the
+        # track segments and feet draw trails and the reached squares accumulate; transforms
+        # (the robot's bodies) are resolved at the cursor, static geometry always shows.
+        view3d = rrb.Spatial3DView(origin="world", name="arena", time_ranges=trails)
         panels: list[Any] = []
         if self._events or self._static_worlds:
             panels += [
@@ -716,6 +712,7 @@ class Recording:
                     contents=["plots/sensors/**", "plots/mode/**"],
                 ),
                 rrb.TimeSeriesView(origin="plots/squares", name="squares reached"),
+                rrb.TimeSeriesView(origin="plots/pose", name="pose (cm, deg)"),
             ]
         if self._has_calibration:
             panels += [

@@ -63,6 +63,19 @@ def _load(path: Path) -> tuple[dict[str, int], dict[str, int], dict[str, set[str
     return rows, static, timelines, len(reader.blueprints())
 
 
+def _column(path: Path, entity: str, column: str) -> list:
+    """All temporal values of ``entity``'s ``column`` (e.g. "Scalars:scalars"), in step order."""
+    out: list[tuple[int, object]] = []
+    for chunk in rr.chunk.RrdReader(path).stream().collect().stream():
+        if chunk.entity_path != entity or chunk.is_static:
+            continue
+        rb = chunk.to_record_batch()
+        steps = rb.column(rb.schema.names.index("step")).to_pylist()
+        vals = rb.column(rb.schema.names.index(column)).to_pylist()
+        out += list(zip(steps, vals, strict=True))
+    return [v for _, v in sorted(out, key=lambda sv: sv[0])]
+
+
 def test_frames_and_squares_hand_worked() -> None:
     assert arena_to_m(415.0, 252.0) == (4.15, 2.52)
     assert heading_to_yaw_rad(0.0) == pytest.approx(math.pi / 2)  # north = +y
@@ -138,6 +151,14 @@ def test_recording_loads_back_with_expected_entities(tmp_path: Path) -> None:
             assert rows[f"/plots/sensors/{world}/{sensor}"] == len(events)
         # One row each time a square is first reached.
         assert rows[f"/world/squares/{world}"] == result.squares
+        assert rows[f"/plots/pose/{world}/heading_deg"] == len(events)
+    # Values survive the round trip: power per event, and the squares reached, in metres.
+    power = _column(path, "/plots/power/table", "Scalars:scalars")
+    assert [p[0] for p in power] == pytest.approx([e.power for e in events])
+    reached = _column(path, "/world/squares/physics", "Boxes3D:centers")
+    want = [square_centre(e.new_square, WorldSettings()) for e in events if e.new_square >= 0]
+    assert [tuple(np.round(np.array(c[-1][:2]) * 100, 6)) for c in reached] == want
+    assert [len(c) for c in reached] == list(range(1, len(want) + 1))  # accumulating
     assert timelines["/world/track/physics"] == {"step", "sim_time"}
     assert timelines["/world/track/table"] == {"step"}
     assert timelines["/world/robot/torso"] == {"sim_time"}
