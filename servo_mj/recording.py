@@ -36,7 +36,6 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import tempfile
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
@@ -256,11 +255,8 @@ class Recording:
         self.settings = settings or RecordingSettings()
         self._blueprint = blueprint
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(
-            prefix=f".{self.path.stem}.", suffix=".rrd", dir=self.path.parent
-        )
-        os.close(fd)
-        self._tmp = Path(tmp)
+        # A unique hidden name beside the target; rerun creates it with the usual file mode.
+        self._tmp = self.path.parent / f".{self.path.stem}.{uuid.uuid4().hex}.rrd"
         self.rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
         self.rec.save(str(self._tmp))
         self._closed = False

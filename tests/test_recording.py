@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import mujoco
@@ -163,6 +164,9 @@ def test_recording_loads_back_with_expected_entities(tmp_path: Path) -> None:
     assert timelines["/world/track/table"] == {"step"}
     assert timelines["/world/robot/torso"] == {"sim_time"}
     assert not list(tmp_path.glob(".*"))  # no temporary file left behind
+    umask = os.umask(0)
+    os.umask(umask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~umask  # the usual mode, not 0600
 
 
 def test_calibration_cycles_and_buffer_flushes(tmp_path: Path) -> None:
