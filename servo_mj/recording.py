@@ -275,7 +275,7 @@ class Recording:
         return self
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        self.close(save=exc_type is None or exc_type is KeyboardInterrupt)
+        self.close(save=exc_type is None)
 
     # ----------------------------------------------------------------------------- arena
     def log_arena(self, world: WorldSettings) -> None:
@@ -501,6 +501,11 @@ class Recording:
         times: dict[str, float | int] = {"step": step}
         if t_s is not None:
             times["sim_time"] = float(t_s)
+        if buf["main"].times and set(buf["main"].times) != set(times):
+            raise ValueError(
+                f"world {world_name!r}: give t_s for every event or for none "
+                f"(got {sorted(times)} after {sorted(buf['main'].times)})"
+            )
         x, y, h = (float(v) for v in getattr(event, "pose", (np.nan, np.nan, 0.0)))
         sensors = int(getattr(event, "sensors", 0) or 0)
         mode = getattr(event, "mode", 0)
@@ -732,6 +737,7 @@ class Recording:
         if self._closed:
             return
         self._closed = True
+        ok = False
         try:
             self._has_calibration = bool(self._calib)
             if save:
@@ -739,9 +745,10 @@ class Recording:
                 if self._blueprint:
                     self.rec.send_blueprint(self._make_blueprint())
             self.rec.flush()
+            ok = save
         finally:
             self.rec.disconnect()
-            if save:
+            if ok:
                 os.replace(self._tmp, self.path)
             self._tmp.unlink(missing_ok=True)
 

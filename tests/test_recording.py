@@ -218,3 +218,11 @@ def test_servobot_model_bodies_are_recorded(tmp_path: Path) -> None:
     assert all(rr.escape_entity_path_part(b) in recorded for b in bodies if b)
     # Every body with a drawable geom carries at least one static shape.
     assert any(e.startswith("/world/robot/") and "/geoms/" in e for e in static)
+
+
+def test_mixed_sim_time_in_one_world_is_refused(tmp_path: Path) -> None:
+    events, _ = _events(3)
+    with pytest.raises(ValueError, match="t_s"), Recording(tmp_path / "mixed.rrd") as rec:
+        rec.log_event(events[0], world_name="physics", t_s=1.6)
+        rec.log_event(events[1], world_name="physics")
+    assert not (tmp_path / "mixed.rrd").exists()
