@@ -85,7 +85,7 @@ def test_physics_blow_up_is_that_runs_error_only(tmp_path, monkeypatch):
 
     monkeypatch.setattr(physics_world.PhysicsWorld, "step", step)
     rep = validate(BITS, STARTS, table=PAPER_TABLE, executor=SerialExecutor(), max_steps=10,
-                   out_dir=tmp_path)  # fmt: skip
+                   out_dir=tmp_path, rrd=True)  # fmt: skip
     ok, bad = rep["runs"]
     assert ok["error"] is None and ok["physics"]["steps"] == 10
     assert bad["physics"] is None and "PhysicsError" in bad["error"]
@@ -94,6 +94,8 @@ def test_physics_blow_up_is_that_runs_error_only(tmp_path, monkeypatch):
     doc = json.loads((tmp_path / "report.json").read_text())
     assert doc["summary"]["physics_errors"] == 1 and doc["summary"]["physics_ok"] == 1
     assert "## Errors" in (tmp_path / "report.md").read_text()
+    # The failed run's recording (table run + physics up to the blow-up) is still written.
+    assert (tmp_path / "run0.rrd").exists() and (tmp_path / "run1.rrd").exists()
 
 
 def test_bad_inputs_are_named():
@@ -136,8 +138,17 @@ def test_cli_rrd_writes_one_recording_per_run(chromosome, tmp_path):
          "--no-progress", "--out", str(out), "--rrd"]
     )  # fmt: skip
     assert rc == 0
-    assert (out / "run0.rrd").stat().st_size > 1000
     assert not (out / "run1.rrd").exists()
+    import rerun as rr
+
+    rows: dict[str, int] = {}
+    for chunk in rr.chunk.RrdReader(out / "run0.rrd").stream().collect().stream():
+        if not chunk.is_static:
+            rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.num_rows
+    # Both worlds' tracks, one row per step, and the robot's bodies every control frame.
+    assert rows["/world/track/physics"] == rows["/world/track/table"] >= 4
+    assert rows["/world/robot/torso"] >= 4 * 8
+    assert "/plots/sensors/physics/object_left" in rows
 
 
 @pytest.mark.parametrize(
