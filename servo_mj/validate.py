@@ -67,6 +67,8 @@ class StartJob:
     physics: Any
     max_steps: int | None
     rrd_path: str | None
+    seed: int = 0
+    """Seed of this run's servo-noise generator: ``default_rng((seed, index))``."""
 
 
 def inner_square_count(world: WorldSettings) -> int:
@@ -170,6 +172,7 @@ def run_start(job: StartJob) -> dict[str, Any]:
         try:
             pw = PhysicsWorld(
                 x, y, h, world=job.world, arena=job.arena, physics=job.physics,
+                rng=np.random.default_rng((job.seed, job.index)),
                 on_frame=None if rec is None else _state_logger(rec),
             )  # fmt: skip
             if rec is not None:
@@ -288,15 +291,18 @@ def validate(
     workers: int | None = None,
     executor: Executor | None = None,
     max_steps: int | None = None,
+    seed: int = 0,
     on_run: Callable[[dict[str, Any]], None] | None = None,
     meta: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the table and physics.
 
     ``table`` is a (16, 3) array or a ``GaitTable``; ``physics`` a ``PhysicsSettings`` (None =
-    default). ``workers``: 1 = serial, None = one process per core (ignored when ``executor``
-    is given). ``on_run(record)`` is called as each run finishes (progress). Returns the report
-    (and writes it into ``out_dir`` when given). Raises ``ValidationError`` on bad input.
+    default; with ``servo_noise_rad`` > 0, run k draws its noise from
+    ``default_rng((seed, k))``). ``workers``: 1 = serial, None = one process per core
+    (ignored when ``executor`` is given). ``on_run(record)`` is called as each run finishes
+    (progress). Returns the report (and writes it into ``out_dir`` when given). Raises
+    ``ValidationError`` on bad input.
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
@@ -320,6 +326,7 @@ def validate(
             physics=physics,
             max_steps=max_steps,
             rrd_path=str(out / f"run{k}.rrd") if (rrd and out is not None) else None,
+            seed=seed,
         )  # fmt: skip
         for k, p in enumerate(poses)
     ]
@@ -353,6 +360,7 @@ def validate(
             "ArenaSettings": _jsonable(arena),
             "PhysicsSettings": _jsonable(physics) if physics is not None else "default",
             "max_steps": max_steps if max_steps is not None else world.coverage_steps,
+            "seed": seed,
             "mode": MODE,
         },
         "meta": _jsonable(meta or {}),

@@ -99,7 +99,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         metavar=("X", "Y", "H"),
         help="a start pose (cm, cm, deg); repeatable; replaces --starts",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the start poses (default 0)")
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of the start poses and servo noise (default 0)"
+    )
     p.add_argument(
         "--table",
         default="paper",
@@ -123,6 +125,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     )
     p.add_argument(
         "--steps", type=int, default=None, metavar="N", help="steps per run (default 600, SPEC §5)"
+    )
+    p.add_argument(
+        "--noise",
+        type=float,
+        default=None,
+        metavar="RAD",
+        help="servo-target noise std in physics, rad (default: PhysicsSettings, 0 = off)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p.parse_args(argv)
@@ -150,6 +159,8 @@ def prepare(args: argparse.Namespace, world: WorldSettings) -> tuple[np.ndarray,
             raise InputError(str(exc)) from exc
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers must be at least 1, got {args.workers}")
+    if args.noise is not None and not (args.noise >= 0.0 and np.isfinite(args.noise)):
+        raise InputError(f"--noise must be a finite number >= 0, got {args.noise}")
     if args.steps is not None and args.steps < 0:
         raise InputError(f"--steps must be at least 0, got {args.steps}")
     return bits, starts
@@ -171,6 +182,11 @@ def main(argv: list[str] | None = None) -> int:
 
     from servo_mj.validate import run_rows, summary_lines, validate
 
+    physics = None
+    if args.noise is not None:
+        from servo_mj.settings import PhysicsSettings
+
+        physics = PhysicsSettings(servo_noise_rad=args.noise)
     bar = tqdm(total=len(starts), desc="validate", unit="start", disable=args.no_progress)
 
     def on_run(rec: dict[str, Any]) -> None:
@@ -184,10 +200,12 @@ def main(argv: list[str] | None = None) -> int:
             starts,
             table=table,
             world=world,
+            physics=physics,
             out_dir=args.out,
             rrd=args.rrd,
             workers=args.workers,
             max_steps=args.steps,
+            seed=args.seed,
             on_run=on_run,
             meta={
                 "chromosome_file": str(args.chromosome),

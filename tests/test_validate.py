@@ -210,3 +210,17 @@ def test_pool_confines_raises_and_crashes_to_their_items():
     assert isinstance(out[3], Failed) and out[3].message == "ValueError: three is bad"
     serial = run_all(SerialExecutor(), _square_or_die, [0, 1, 3])
     assert serial[:2] == [Ok(0), Ok(1)] and isinstance(serial[2], Failed)
+
+
+def test_servo_noise_is_seeded_per_run():
+    from servo_mj.settings import PhysicsSettings
+
+    noisy = PhysicsSettings(servo_noise_rad=0.03)
+
+    def final(seed):
+        rep = validate(BITS, STARTS[1:], table=PAPER_TABLE, physics=noisy, workers=1,
+                       max_steps=6, seed=seed)  # fmt: skip
+        return rep["runs"][0]["physics"]["final_pose"]
+
+    assert final(1) == final(1)
+    assert final(1) != final(2)
