@@ -104,19 +104,17 @@ class ReproduceSettings:
 
 
 def quick_settings(**overrides: Any) -> ReproduceSettings:
-    """A first look in a few minutes on 2 cores: 2 populations × 48 individuals, 48
-    navigation and 32 coverage generations, 5 calibration cycles, 3 validation starts of 100
-    steps per finalist."""
+    """A first look in a few minutes on 2 cores: the paper's 5 populations but of 64
+    individuals, 256 navigation and 128 coverage generations, 5 calibration cycles, and 3
+    full-length (600-step) validation starts per finalist, so that docking and recharging
+    show in physics."""
     base = ReproduceSettings(
         calibration_cycles=5,
-        navigation_populations=2,
-        navigation_population_size=48,
-        navigation_generations=48,
-        coverage_populations=2,
-        coverage_population_size=48,
-        coverage_generations=32,
+        navigation_population_size=64,
+        navigation_generations=256,
+        coverage_population_size=64,
+        coverage_generations=128,
         validate_starts=3,
-        validate_max_steps=100,
     )
     return dataclasses.replace(base, **overrides)
 
