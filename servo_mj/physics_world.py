@@ -205,12 +205,49 @@ def sensor_agreement(
     }
 
 
+def run_agreement(
+    bits: np.ndarray, starts: np.ndarray, *, world: WorldSettings | None = None
+) -> dict[str, Any]:
+    """Run ``bits`` (coverage mode) from each start in physics and compare the object sensors
+    of every ``StepEvent`` with the geometric sensors at the event's physical pose."""
+    from evolve.codec import OBJECT_LEFT, OBJECT_RIGHT
+    from evolve.interpreter import run
+
+    world = world or WorldSettings()
+    n = agree = 0
+    misses: list[dict[str, Any]] = []
+    for x, y, h in np.asarray(starts, dtype=float):
+        events: list[Any] = []
+        run(bits, PhysicsWorld(x, y, h, world=world), mode="coverage", settings=world,
+            on_event=events.append)  # fmt: skip
+        for e in events:
+            got = (bool(e.sensors & OBJECT_LEFT), bool(e.sensors & OBJECT_RIGHT))
+            want = geometry.object_sensors(*e.pose, world)
+            n += 1
+            agree += got == want
+            if got != want:
+                misses.append({"pose": list(e.pose), "physics": got, "geometry": want})
+    return {"events": n, "agree": agree / n if n else float("nan"), "disagreements": misses}
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m servo_mj.physics_world [N] [SEED]``: sensor agreement on sampled poses."""
+    """``python -m servo_mj.physics_world [N] [SEED]``: sensor agreement on N sampled poses;
+    ``python -m servo_mj.physics_world --runs CHROMOSOME N [SEED]``: along N coverage runs."""
     import json
     import sys
 
     args = list(sys.argv[1:] if argv is None else argv)
+    if args and args[0] == "--runs":
+        from evolve.codec import read_chromosome
+        from servo_mj.validate_cli import draw_starts
+
+        world = WorldSettings()
+        seed = int(args[3]) if len(args) > 3 else 0
+        starts = draw_starts(int(args[2]), np.random.default_rng(seed), world)
+        res = run_agreement(read_chromosome(args[1]), starts, world=world)
+        res["disagreements"] = res["disagreements"][:10]
+        print(json.dumps(res, default=float, indent=1))
+        return 0
     n = int(args[0]) if args else 200
     seed = int(args[1]) if len(args) > 1 else 0
     world = WorldSettings()
@@ -222,7 +259,15 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-__all__ = ["Frame", "PhysicsWorld", "colony", "near_station", "sample_poses", "sensor_agreement"]
+__all__ = [
+    "Frame",
+    "PhysicsWorld",
+    "colony",
+    "near_station",
+    "run_agreement",
+    "sample_poses",
+    "sensor_agreement",
+]
 
 
 if __name__ == "__main__":
