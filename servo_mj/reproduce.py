@@ -34,7 +34,7 @@ import numpy as np
 
 from evolve.io import atomic_write_json, atomic_write_text
 from evolve.settings import GASettings, WorldSettings, navigation_ga_settings, settings_json
-from evolve.table import PAPER_TABLE, GaitTable, load_table
+from evolve.table import PAPER_TABLE, GaitTable, GaitTableError, load_table
 
 STAGES = ("calibration", "navigation", "coverage", "validation")
 """The stages with a ``done.json`` marker, in order; the report is always rewritten."""
@@ -304,6 +304,7 @@ def reproduce(
     world = world or WorldSettings()
     ncpu = os.cpu_count() or 1
     t_all = time.perf_counter()
+    _check_folder(out, s)  # refuse a folder of other settings before writing anything
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(
         out / "settings.json",
@@ -323,78 +324,99 @@ def reproduce(
         log(f"[{name}] running")
         folder.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
-        info = body()
+        try:
+            info = body()
+        except BaseException as exc:
+            wall = round(time.perf_counter() - t0, 3)
+            what = "interrupted" if isinstance(exc, KeyboardInterrupt) else f"failed: {exc}"
+            stages[name] = {"skipped": False, "wall_s": wall, "failed": what}
+            raise
         wall = time.perf_counter() - t0
         _write_done(folder, key, wall, info=info)
         stages[name] = {"skipped": False, "wall_s": round(wall, 3), **info}
         log(f"[{name}] done in {wall:.1f} s")
 
-    # 1. calibration
-    cal = out / "calibration"
-    run_stage(
-        "calibration",
-        lambda: _calibrate(cal, s, workers or ncpu, record=True),
-        [cal / "gait_table.json", cal / "figure4.png"],
-    )
-    table = load_table(str(cal / "gait_table.json"))
-
-    # 2. navigation
-    from evolve.stages import run_coverage, run_navigation
-
-    nav = out / "navigation"
-
-    def navigation() -> dict[str, Any]:
-        summ = run_navigation(
-            out, table=table, ga=s.navigation_ga(), world=world, resume=True, progress=progress
+    def run_all() -> None:
+        # 1. calibration
+        cal = out / "calibration"
+        run_stage(
+            "calibration",
+            lambda: _calibrate(cal, s, workers or ncpu, record=True),
+            [cal / "gait_table.json", cal / "figure4.png"],
         )
-        return {"dock_success": summ["dock_success"], "chosen": summ["chosen_population"]}
+        table = load_table(str(cal / "gait_table.json"))
 
-    run_stage("navigation", navigation, [nav / "best.txt", nav / "summary.json"])
+        # 2. navigation
+        from evolve.stages import run_coverage, run_navigation
 
-    # 3. coverage
-    from evolve.codec import read_chromosome
+        nav = out / "navigation"
 
-    cov = out / "coverage"
-
-    def coverage() -> dict[str, Any]:
-        bits8 = read_chromosome(nav / "best.txt")
-        summ = run_coverage(
-            out,
-            navigation=bits8,
-            table=table,
-            ga=s.coverage_ga(),
-            world=world,
-            resume=True,
-            progress=progress,
-        )
-        return {"final_mean_inner_percent": summ["final_mean_inner_percent"]}
-
-    finalists = [cov / f"best_pop{k}.txt" for k in range(s.coverage_populations)]
-    run_stage("coverage", coverage, [cov / "summary.json", *finalists])
-
-    # 4. validation (finalist by finalist)
-    val = out / "validation"
-    val_key = stage_key(s, "validation")
-
-    def validation() -> dict[str, Any]:
-        res = _validate_finalists(out, s, table, world, workers, progress, val_key, log)
-        failed = [k for k, r in res.items() if "error" in r]
-        if failed:
-            raise ReproduceError(
-                f"validation failed for finalist(s) {', '.join(failed)}; see the log above"
+        def navigation() -> dict[str, Any]:
+            summ = run_navigation(
+                out, table=table, ga=s.navigation_ga(), world=world, resume=True, progress=progress
             )
-        return {"finalists": res}
+            return {"dock_success": summ["dock_success"], "chosen": summ["chosen_population"]}
 
-    run_stage(
-        "validation",
-        validation,
-        [val / f"pop{k}" / "report.json" for k in range(s.coverage_populations)],
-    )
+        run_stage("navigation", navigation, [nav / "best.txt", nav / "summary.json"])
 
-    total = time.perf_counter() - t_all
-    report = write_report(out, s, world, stages, total_wall_s=total, ncpu=ncpu)
-    log(f"[report] {report}")
-    return {"stages": stages, "report": str(report), "wall_s": round(total, 3)}
+        # 3. coverage
+        from evolve.codec import read_chromosome
+
+        cov = out / "coverage"
+
+        def coverage() -> dict[str, Any]:
+            bits8 = read_chromosome(nav / "best.txt")
+            summ = run_coverage(
+                out,
+                navigation=bits8,
+                table=table,
+                ga=s.coverage_ga(),
+                world=world,
+                resume=True,
+                progress=progress,
+            )
+            return {"final_mean_inner_percent": summ["final_mean_inner_percent"]}
+
+        finalists = [cov / f"best_pop{k}.txt" for k in range(s.coverage_populations)]
+        run_stage("coverage", coverage, [cov / "summary.json", *finalists])
+
+        # 4. validation (finalist by finalist)
+        val = out / "validation"
+        val_key = stage_key(s, "validation")
+
+        def validation() -> dict[str, Any]:
+            res = _validate_finalists(out, s, table, world, workers, progress, val_key, log)
+            failed = [k for k, r in res.items() if "error" in r]
+            if failed:
+                raise ReproduceError(
+                    f"validation failed for finalist(s) {', '.join(failed)}; see the log above"
+                )
+            return {"finalists": res}
+
+        run_stage(
+            "validation",
+            validation,
+            [val / f"pop{k}" / "report.json" for k in range(s.coverage_populations)],
+        )
+
+    try:
+        run_all()
+    finally:  # the report says how far the run got, also when a stage failed
+        total = time.perf_counter() - t_all
+        try:
+            report = write_report(out, s, world, stages, total_wall_s=total, ncpu=ncpu)
+            log(f"[report] {report}")
+        except Exception as exc:  # noqa: BLE001 - never mask the stage's own error
+            log(f"[report] could not be written: {exc}")
+    return {"stages": stages, "report": str(out / "REPORT.md"), "wall_s": round(total, 3)}
+
+
+def _check_folder(out: Path, s: ReproduceSettings) -> None:
+    """Raise ``ReproduceError`` if any stage in ``out`` finished with other settings."""
+    for name in STAGES:
+        _read_done(out / name, stage_key(s, name))
+    for sub in sorted((out / "validation").glob("pop*")):
+        _read_done(sub, stage_key(s, "validation"))
 
 
 def _check_settings(s: ReproduceSettings) -> None:
@@ -592,7 +614,7 @@ def write_report(
         if st is None:
             lines.append(f"| {name} | — | not reached |")
         else:
-            how = "skipped (done earlier)" if st.get("skipped") else "ran"
+            how = st.get("failed") or ("skipped (done earlier)" if st.get("skipped") else "ran")
             lines.append(f"| {name} | {_fmt_s(float(st['wall_s']))} | {how} |")
     ran = sum(float(st["wall_s"]) for st in stages.values())
     lines += [
@@ -657,6 +679,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     # Nothing here renders: keep dm_control from probing for an X display (GLFW warnings).
     os.environ.setdefault("MUJOCO_GL", "disable")
+    from evolve.stages import StageError
+
     args = build_parser().parse_args(argv)
     if args.workers is not None and args.workers < 1:
         print("servobot reproduce: --workers must be ≥ 1", file=sys.stderr)
@@ -670,7 +694,7 @@ def main(argv: list[str] | None = None) -> int:
             validate_starts=args.validate_starts,
             progress=not args.no_progress,
         )
-    except ReproduceError as exc:
+    except (ReproduceError, StageError, GaitTableError) as exc:
         print(f"servobot reproduce: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -115,8 +115,10 @@ def test_interrupted_validation_resumes_per_finalist(run_dir: tuple[Path, dict])
 def test_other_settings_in_the_same_folder_are_refused(run_dir: tuple[Path, dict]) -> None:
     out, _ = run_dir
     other = dataclasses.replace(TINY, coverage_generations=3)
+    report = (out / "REPORT.md").read_text()
     with pytest.raises(ReproduceError, match="coverage_generations"):
         reproduce(out, settings=other, workers=1, progress=False, log=lambda _m: None)
+    assert (out / "REPORT.md").read_text() == report  # nothing rewritten
 
 
 def test_settings_keys_and_presets() -> None:
@@ -137,3 +139,18 @@ def test_cli_rejects_bad_budget(tmp_path: Path, capsys: pytest.CaptureFixture) -
     assert main(["--out", str(tmp_path / "x"), "--validate-starts", "0", "--no-progress"]) == 2
     assert "validate_starts" in capsys.readouterr().err
     assert main(["--out", str(tmp_path / "y"), "--workers", "0"]) == 2
+
+
+def test_failed_stage_is_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import servo_mj.reproduce as rp
+
+    def broken(*_a, **_k):
+        raise ReproduceError("calibration failed (test)")
+
+    monkeypatch.setattr(rp, "_calibrate", broken)
+    with pytest.raises(ReproduceError, match="calibration failed"):
+        reproduce(tmp_path, settings=TINY, workers=1, progress=False, log=lambda _m: None)
+    text = (tmp_path / "REPORT.md").read_text()
+    assert "| calibration |" in text and "failed: calibration failed (test)" in text
+    assert "| navigation | — | not reached |" in text
+    assert not (tmp_path / "calibration" / "done.json").exists()
