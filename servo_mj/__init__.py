@@ -1,1 +1,8 @@
 """MuJoCo side of the ServoBot colony: model loading, gaits, arena, physics sensors, validation."""
+
+import os
+
+# Nothing in this package renders. Without a display, dm_control's automatic OpenGL probing
+# warns through GLFW on import; "disable" skips it. A user who renders sets MUJOCO_GL itself
+# (egl or osmesa), which this leaves alone.
+os.environ.setdefault("MUJOCO_GL", "disable")

@@ -677,8 +677,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    # Nothing here renders: keep dm_control from probing for an X display (GLFW warnings).
-    os.environ.setdefault("MUJOCO_GL", "disable")
     from evolve.stages import StageError
 
     args = build_parser().parse_args(argv)
