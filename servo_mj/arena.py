@@ -64,8 +64,8 @@ class ArenaSettings:
     floor): above the servos and lifted legs (≤ 0.045 m), 5 cm above the station block, and
     a ray must pitch down ~17° to meet the floor within 0.5 m."""
     robot_clearance_cm: float = 26.0
-    """A robot centre closer than this to the station block overlaps it (probe reach 25.2 cm):
-    such start poses are refused."""
+    """A robot centre closer than this to the station block overlaps it (probe reach 23.7 cm,
+    plus a margin): such start poses are refused."""
     colours: dict[str, tuple[float, float, float, float]] = field(
         default_factory=lambda: {
             "floor": (0.82, 0.80, 0.75, 1.0),
