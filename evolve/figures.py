@@ -1,0 +1,260 @@
+"""Figures 8, 9 and 10 of the paper as PNG files (matplotlib, Agg backend; no display needed).
+
+Figure 8: the arena alone — the 10 × 10 squares with their central contact zones (inner
+squares shaded), the kill zone, the power station and docking box, the two lights, their lit
+cones and the dark area. Figure 9: test fitness (% of the 64 inner squares) of each
+population's best individual per saved generation, 5 thin lines and their bold mean.
+Figure 10: a chromosome's track from a start pose (the table interpreter) over the arena.
+Arena units (cm), x east, y north; headings 0 = north, clockwise.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib import patches  # noqa: E402
+
+from evolve import geometry  # noqa: E402
+from evolve.io import atomic_write  # noqa: E402
+from evolve.settings import WorldSettings  # noqa: E402
+from evolve.table import GaitTable  # noqa: E402
+
+LIT_GRID_STEP = 2.5
+"""Resolution of the lit/dark shading, arena units."""
+DPI = 130
+"""Resolution of the PNG files."""
+END_NAMES = ("step limit", "kill zone", "power empty", "branch limit", "docked")
+"""Names of the end codes 0–4 (SPEC §4, ``evolve.evaluate``)."""
+
+
+def lit_mask(world: WorldSettings, step: float = LIT_GRID_STEP) -> np.ndarray:
+    """Boolean (ny, nx) grid of cell centres lit by at least one source (row 0 = south)."""
+    centres = np.arange(step / 2, world.arena_size, step)
+    mask = np.zeros((centres.size, centres.size), dtype=bool)
+    for j, y in enumerate(centres):
+        for i, x in enumerate(centres):
+            mask[j, i] = any(geometry.lit(x, y, world))
+    return mask
+
+
+def draw_arena(ax: Any, world: WorldSettings, *, reached: frozenset[int] = frozenset()) -> None:
+    """Draw the arena of SPEC §3 on ``ax``; squares in ``reached`` are filled green."""
+    size, sq, n = world.arena_size, world.square_size, world.grid_n
+    dark = ~lit_mask(world)
+    ax.imshow(
+        np.where(dark, 1.0, np.nan),
+        extent=(0, size, 0, size),
+        origin="lower",
+        cmap="Greys",
+        vmin=0,
+        vmax=2.5,
+        alpha=0.55,
+        zorder=0,
+    )
+    half = world.contact_half_width
+    for j in range(n):
+        for i in range(n):
+            idx = i + n * j
+            inner = 1 <= i <= n - 2 and 1 <= j <= n - 2
+            ax.add_patch(
+                patches.Rectangle((i * sq, j * sq), sq, sq, fill=False, lw=0.4, ec="0.6", zorder=1)
+            )
+            fc = "tab:green" if idx in reached else ("#dbe8f5" if inner else "#f2f2f2")
+            ax.add_patch(
+                patches.Rectangle(
+                    (i * sq + sq / 2 - half, j * sq + sq / 2 - half),
+                    2 * half,
+                    2 * half,
+                    fc=fc,
+                    ec="0.75",
+                    lw=0.3,
+                    alpha=0.8 if idx in reached else 0.7,
+                    zorder=1,
+                )
+            )
+    m = world.kill_margin
+    kill = patches.Polygon(
+        [
+            (0, 0),
+            (size, 0),
+            (size, size),
+            (0, size),
+            (0, 0),
+            (m, m),
+            (m, size - m),
+            (size - m, size - m),
+            (size - m, m),
+            (m, m),
+        ],
+        closed=True,
+        fc="tab:red",
+        alpha=0.18,
+        ec="none",
+        zorder=2,
+        label="kill zone",
+    )
+    ax.add_patch(kill)
+    w = world.station_width
+    ax.add_patch(
+        patches.Rectangle(
+            (size - 6, world.station_y - w / 2),
+            6,
+            w,
+            fc="tab:orange",
+            ec="k",
+            lw=0.6,
+            zorder=4,
+            label="power station",
+        )
+    )
+    ax.add_patch(
+        patches.Rectangle(
+            (world.dock_x_min, world.station_y - world.dock_y_half_width),
+            size - world.dock_x_min,
+            2 * world.dock_y_half_width,
+            fill=False,
+            ec="tab:orange",
+            ls="--",
+            lw=0.8,
+            zorder=4,
+            label="docking box",
+        )
+    )
+    lx = [s[0] for s in world.lights]
+    ly = [s[1] for s in world.lights]
+    ax.scatter(lx, ly, marker="*", s=90, c="gold", ec="k", lw=0.5, zorder=5, label="lights")
+    ax.add_patch(patches.Rectangle((0, 0), 1, 1, fc="0.55", alpha=0.55, label="dark area"))
+    ax.set_xlim(0, size)
+    ax.set_ylim(0, size)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (cm, east)")
+    ax.set_ylabel("y (cm, north)")
+
+
+def _save(fig: Any, path: Path) -> Path:
+    out = atomic_write(path, lambda p: fig.savefig(p, dpi=DPI, bbox_inches="tight"))
+    plt.close(fig)
+    return out
+
+
+def figure8(path: str | Path, world: WorldSettings = geometry.DEFAULT_WORLD) -> Path:
+    """Figure 8: the arena alone, as a PNG at ``path``."""
+    fig, ax = plt.subplots(figsize=(6.2, 6.2))
+    draw_arena(ax, world)
+    ax.set_title(
+        "Figure 8: colony arena — squares (contact zones), kill zone, station,\n"
+        "lights and the dark area outside both lit cones",
+        fontsize=9,
+    )
+    ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
+    return _save(fig, Path(path))
+
+
+def figure9(path: str | Path, generations: Any, inner_percent: np.ndarray) -> Path:
+    """Figure 9: one thin line per population (rows of ``inner_percent``, % of 64 inner
+    squares) over ``generations``, and their mean in bold."""
+    inner = np.asarray(inner_percent, dtype=float)
+    gens = np.asarray(generations)
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for k, row in enumerate(inner):
+        ax.plot(gens, row, lw=0.9, marker=".", alpha=0.8, label=f"population {k}")
+    mean = inner.mean(axis=0)
+    ax.plot(gens, mean, lw=2.8, color="k", label="mean")
+    ax.annotate(
+        f"{mean[-1]:.1f}%",
+        (gens[-1], mean[-1]),
+        textcoords="offset points",
+        xytext=(4, 4),
+        fontsize=8,
+    )
+    ax.set_xlabel("generation")
+    ax.set_ylabel("test fitness (% of 64 inner squares)")
+    ax.set_ylim(0, 100)
+    ax.set_title("Figure 9: area-coverage fitness of each population's best individual", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, Path(path))
+
+
+def run_track(
+    chromosome: np.ndarray,
+    *,
+    table: GaitTable | np.ndarray,
+    world: WorldSettings,
+    start: tuple[float, float, float],
+    mode: str = "coverage",
+    max_steps: int | None = None,
+) -> Any:
+    """Run ``chromosome`` from ``start`` with the reference interpreter on the table world."""
+    from evolve.interpreter import run
+    from evolve.world import TableWorld
+
+    values = getattr(table, "values", table)
+    tw = TableWorld(values, *start, world)
+    steps = (
+        max_steps
+        if max_steps is not None
+        else (world.coverage_steps if mode == "coverage" else world.navigation_steps)
+    )
+    return run(
+        np.asarray(chromosome, np.uint8),
+        tw,
+        mode=mode,
+        settings=world,
+        start_power=world.start_power_v,
+        max_steps=steps,
+    )
+
+
+def _end_name(end: Any) -> str:
+    return END_NAMES[int(end)] if isinstance(end, int | np.integer) else str(end)
+
+
+def figure10(
+    path: str | Path,
+    chromosome: np.ndarray,
+    *,
+    table: GaitTable | np.ndarray,
+    world: WorldSettings = geometry.DEFAULT_WORLD,
+    start: tuple[float, float, float] = (415.0, 252.0, 98.0),
+    title: str = "",
+) -> dict[str, Any]:
+    """Figure 10: the track of a 16-gene ``chromosome`` from ``start`` over the arena, with
+    the squares it reached. Returns ``{squares, inner_squares, docks, steps, end}``."""
+    res = run_track(chromosome, table=table, world=world, start=start)
+    track = np.asarray(res.track, dtype=float)
+    fig, ax = plt.subplots(figsize=(6.2, 6.2))
+    draw_arena(ax, world, reached=frozenset(res.reached))
+    ax.plot(track[:, 0], track[:, 1], lw=0.9, color="tab:blue", zorder=6, label="track")
+    ax.plot(*track[0, :2], "o", color="tab:green", ms=6, zorder=7, label="start")
+    ax.plot(*track[-1, :2], "s", color="tab:red", ms=5, zorder=7, label="end")
+    h = np.deg2rad(start[2])
+    ax.arrow(
+        start[0], start[1], 18 * np.sin(h), 18 * np.cos(h), width=1.5, color="tab:green", zorder=7
+    )
+    info = {
+        "squares": int(res.squares),
+        "inner_squares": int(res.inner_squares),
+        "docks": int(res.docks),
+        "steps": int(res.steps),
+        "end": _end_name(res.end),
+    }
+    ax.set_title(
+        f"Figure 10 {title}: from ({start[0]:g}, {start[1]:g}, {start[2]:g}°) — "
+        f"{info['squares']} squares ({info['inner_squares']} inner), "
+        f"{info['docks']} docks, {info['steps']} steps, end: {info['end']}",
+        fontsize=8,
+    )
+    ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
+    _save(fig, Path(path))
+    return info
+
+
+__all__ = ["figure8", "figure9", "figure10", "draw_arena", "lit_mask", "run_track"]
