@@ -1,0 +1,182 @@
+"""``servobot evolve navigation|coverage``: the CGA stages from the command line.
+
+A thin layer over ``evolve.stages``::
+
+    servobot evolve navigation [--populations 5 --generations 1024 --population-size 256
+                                --seed 0 --table paper|PATH --out runs/evolve --resume]
+    servobot evolve coverage   [... --generations 512 ... --navigation FILE]
+
+Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
+``GASettings()`` for coverage. ``--navigation`` defaults to ``DIR/navigation/best.txt``; a
+16-gene file (e.g. a ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the
+navigation section, are used. Bad input (missing or malformed files, a bad gait table,
+impossible sizes) prints one message and exits with code 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evolve.settings import GASettings, navigation_ga_settings
+
+DEFAULT_OUT = Path("runs/evolve")
+"""Default run folder of ``--out``."""
+EXIT_USAGE = 2
+"""Exit code of bad input (argparse's convention)."""
+
+
+class CliError(ValueError):
+    """Bad command-line input; the message is printed as is."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``servobot evolve``."""
+    p = argparse.ArgumentParser(
+        prog="servobot evolve",
+        description="Run a CGA stage on the table simulation: navigation (the docking "
+        "section), then coverage (the area-coverage section with the navigation fixed).",
+    )
+    p.add_argument("stage", choices=("navigation", "coverage"), help="which stage to run")
+    p.add_argument(
+        "--populations", type=int, default=None, help="independent populations (default 5)"
+    )
+    p.add_argument(
+        "--generations",
+        type=int,
+        default=None,
+        help="generations (default 1024 for navigation, 512 for coverage)",
+    )
+    p.add_argument(
+        "--population-size", type=int, default=None, help="individuals per population (256)"
+    )
+    p.add_argument("--seed", type=int, default=None, help="seed of every random draw (0)")
+    p.add_argument(
+        "--table", default="paper", help="gait table: 'paper' (Figure 4) or a calibration JSON"
+    )
+    p.add_argument(
+        "--out", type=Path, default=DEFAULT_OUT, help=f"run folder (default {DEFAULT_OUT})"
+    )
+    p.add_argument(
+        "--resume", action="store_true", help="continue from the checkpoints in the run folder"
+    )
+    p.add_argument(
+        "--navigation",
+        type=Path,
+        default=None,
+        help="coverage only: navigation section file (default DIR/navigation/best.txt)",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    return p
+
+
+def ga_settings(args: argparse.Namespace) -> GASettings:
+    """The stage's GA settings with the command-line overrides applied."""
+    base = navigation_ga_settings() if args.stage == "navigation" else GASettings()
+    over: dict[str, Any] = {}
+    for field, value in (
+        ("populations", args.populations),
+        ("generations", args.generations),
+        ("population_size", args.population_size),
+        ("seed", args.seed),
+    ):
+        if value is not None:
+            over[field] = value
+    ga = dataclasses.replace(base, **over)
+    if ga.populations < 1:
+        raise CliError(f"--populations must be ≥ 1, got {ga.populations}")
+    if ga.population_size < 2:
+        raise CliError(f"--population-size must be ≥ 2, got {ga.population_size}")
+    if ga.generations < 1:
+        raise CliError(f"--generations must be ≥ 1, got {ga.generations}")
+    if ga.seed < 0:
+        raise CliError(f"--seed must be ≥ 0, got {ga.seed}")
+    return ga
+
+
+def load_navigation(path: Path) -> np.ndarray:
+    """The (8, 30) navigation section of ``path`` (8 genes, or genes 8–15 of 16)."""
+    from evolve.codec import SECTION_GENES, read_chromosome
+
+    if not path.exists():
+        raise CliError(
+            f"{path}: no navigation section file; run 'servobot evolve navigation' with the "
+            "same --out first, or give --navigation FILE"
+        )
+    bits = read_chromosome(path)
+    return bits if bits.shape[0] == SECTION_GENES else bits[SECTION_GENES:]
+
+
+def _print_navigation(summary: dict[str, Any], out: Path) -> None:
+    steps = summary["mean_steps_to_dock"]
+    print(
+        f"navigation: chosen population {summary['chosen_population']}, test fitness "
+        f"{summary['test_fitness']:.3f}, docked {summary['dock_success']:.0%} of "
+        f"{summary['test_starts']} fresh starts"
+        + (f", mean {steps:.1f} steps to dock" if steps is not None else "")
+    )
+    for p in summary["populations"]:
+        print(
+            f"  population {p['population']}: test fitness {p['test_fitness']:.3f}, "
+            f"docked {p['dock_rate']:.0%}"
+        )
+    print(f"wrote {out / 'navigation' / 'best.txt'} ({summary['wall_s']:.1f} s)")
+
+
+def _print_coverage(summary: dict[str, Any], out: Path) -> None:
+    gen = summary["generations"][-1]
+    per = ", ".join(f"{v:.1f}" for v in summary["final_inner_percent"])
+    print(
+        f"coverage: Figure 9 at generation {gen}: mean {summary['final_mean_inner_percent']:.1f}% "
+        f"of the 64 inner squares (populations: {per})"
+    )
+    for f in summary["figure10"]:
+        print(
+            f"  Figure 10 population {f['population']}: {f['squares']} squares "
+            f"({f['inner_squares']} inner), {f['docks']} docks, end: {f['end']}"
+        )
+    print(f"wrote {out / 'coverage'} and {out / 'figure8.png'} ({summary['wall_s']:.1f} s)")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``servobot evolve``; returns the exit code (0 ok, 2 bad input)."""
+    args = build_parser().parse_args(argv)
+    from evolve import stages
+    from evolve.codec import ChromosomeError
+    from evolve.table import GaitTableError, load_table
+
+    try:
+        ga = ga_settings(args)
+        table = load_table(args.table)
+        if args.stage == "navigation":
+            if args.navigation is not None:
+                raise CliError("--navigation is an option of the coverage stage")
+            summary = stages.run_navigation(
+                args.out, table=table, ga=ga, resume=args.resume, progress=not args.no_progress
+            )
+            _print_navigation(summary, args.out)
+        else:
+            nav_path = args.navigation or args.out / "navigation" / "best.txt"
+            navigation = load_navigation(nav_path)
+            summary = stages.run_coverage(
+                args.out,
+                navigation=navigation,
+                table=table,
+                ga=ga,
+                resume=args.resume,
+                progress=not args.no_progress,
+            )
+            _print_coverage(summary, args.out)
+    except (CliError, stages.StageError, GaitTableError, ChromosomeError) as exc:
+        print(f"servobot evolve: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
