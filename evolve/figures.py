@@ -1,8 +1,8 @@
 """Figures 8, 9 and 10 of the paper as PNG files (matplotlib, Agg backend; no display needed).
 
 Figure 8: the arena alone — the 10 × 10 squares with their central contact zones (inner
-squares shaded), the kill zone, the power station and docking box, the two lights, their lit
-cones and the dark area. Figure 9: test fitness (% of the 64 inner squares) of each
+squares shaded), the kill zone, the power station and docking box, the two lights, the edges
+of their lit cones and the dark area. Figure 9: test fitness (% of the 64 inner squares) of each
 population's best individual per saved generation, 5 thin lines and their bold mean.
 Figure 10: a chromosome's track from a start pose (the table interpreter) over the arena.
 Arena units (cm), x east, y north; headings 0 = north, clockwise.
@@ -30,6 +30,8 @@ LIT_GRID_STEP = 2.5
 """Resolution of the lit/dark shading, arena units."""
 DPI = 130
 """Resolution of the PNG files."""
+CONE_EDGE_LENGTH_FACTOR = 1.5
+"""Lit-cone edges are drawn this many arena sides long (the axes clip them at the walls)."""
 END_NAMES = ("step limit", "kill zone", "power empty", "branch limit", "docked")
 """Names of the end codes 0–4 (SPEC §4, ``evolve.evaluate``)."""
 
@@ -130,7 +132,21 @@ def draw_arena(ax: Any, world: WorldSettings, *, reached: frozenset[int] = froze
     lx = [s[0] for s in world.lights]
     ly = [s[1] for s in world.lights]
     ax.scatter(lx, ly, marker="*", s=90, c="gold", ec="k", lw=0.5, zorder=5, label="lights")
-    ax.add_patch(patches.Rectangle((0, 0), 1, 1, fc="0.55", alpha=0.55, label="dark area"))
+    reach = CONE_EDGE_LENGTH_FACTOR * size
+    for k, (x0, y0) in enumerate(world.lights):
+        for side in (-1.0, 1.0):
+            a = np.deg2rad(world.light_axis_deg + side * world.light_half_angle_deg)
+            ax.plot(
+                [x0, x0 + reach * np.sin(a)],
+                [y0, y0 + reach * np.cos(a)],
+                color="goldenrod",
+                ls=":",
+                lw=0.9,
+                zorder=3,
+                label="lit-cone edges" if k == 0 and side < 0 else None,
+            )
+    # legend entry only (zero size): the dark area itself is the grey image above
+    ax.add_patch(patches.Rectangle((0, 0), 0, 0, fc="0.55", alpha=0.55, label="dark area"))
     ax.set_xlim(0, size)
     ax.set_ylim(0, size)
     ax.set_aspect("equal")
