@@ -109,3 +109,26 @@ def test_cli_records_a_rerun_file(tmp_path) -> None:
     rrd = tmp_path / "cal.rrd"
     assert cli.main(["--cycles", "1", "--out", str(tmp_path), "--rrd", str(rrd)]) == 0
     assert rrd.stat().st_size > 10_000
+
+
+def test_gap_diagnostic_residuals_are_zero_in_the_table_world_and_see_a_detuned_table() -> None:
+    """``calibration.gap`` compares each executed cycle with its gait's table row: run in the
+    table world itself every residual is 0; against a table whose executed gaits turn 1 deg
+    more, every cycle shows exactly -1 deg."""
+    from calibration.gap import LoggingWorld, residuals
+    from evolve.interpreter import run
+    from evolve.world import TableWorld
+
+    table = np.asarray(PAPER_TABLE, dtype=float)
+    bits = np.zeros((16, 30), dtype=np.uint8)  # all-zero genes: one fixed gait, loop forever
+    world = LoggingWorld(TableWorld(table, 250.0, 250.0, 30.0))
+    run(bits, world, mode="coverage", max_steps=12)
+    assert len(world.log) == 12
+    res = residuals(world.log, table)
+    assert all(np.allclose(r, 0.0, atol=1e-9) for _, _, r in res)
+    gaits = {g for g, _, _ in res}
+    detuned = table.copy()
+    for g in gaits:
+        detuned[g, 2] += 1.0
+    assert all(r[2] == pytest.approx(-1.0, abs=1e-9) for _, _, r in residuals(world.log, detuned))
+    assert [p for _, p, _ in res][:2] == [-1, res[0][0]]
