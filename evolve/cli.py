@@ -29,6 +29,8 @@ DEFAULT_OUT = Path("runs/evolve")
 """Default run folder of ``--out``."""
 EXIT_USAGE = 2
 """Exit code of bad input (argparse's convention)."""
+EXIT_INTERRUPTED = 130
+"""Exit code after Ctrl-C (128 + SIGINT, the shell's convention)."""
 
 
 class CliError(ValueError):
@@ -175,6 +177,13 @@ def main(argv: list[str] | None = None) -> int:
     except (CliError, stages.StageError, GaitTableError, ChromosomeError) as exc:
         print(f"servobot evolve: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(
+            f"\nservobot evolve: interrupted; the checkpoints in {args.out} are kept, "
+            "rerun the same command with --resume to continue",
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
     return 0
 
 
