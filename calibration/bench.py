@@ -20,9 +20,12 @@ from servo_mj.model import load_robot
 from servo_mj.settings import PhysicsSettings
 
 
-def bench_gait(cycles: int, gait: int = 0) -> tuple[float, float, float]:
-    """Walk ``cycles`` cycles of ``gait``: (steps/s, real-time factor, ms wall per cycle)."""
+def bench_gait(cycles: int, gait: int = 0, cone: int | None = None) -> tuple[float, float, float]:
+    """Walk ``cycles`` cycles of ``gait``: (steps/s, real-time factor, ms wall per cycle).
+    ``cone``: a ``mujoco.mjtCone`` value instead of the scene's (comparison only)."""
     m, d = load_robot()
+    if cone is not None:
+        m.opt.cone = cone
     bot = ServoBot(m, d)
     bot.place(0.0, 0.0, 0.0)
     t_sim0 = d.time
@@ -69,6 +72,10 @@ def main(argv: list[str] | None = None) -> int:
         f"gait 0, {args.cycles} cycles: {sps:,.0f} steps/s, {rtf:.0f}x real time, "
         f"{ms:.2f} ms wall per 1.6 s cycle"
     )
+    for name, cone in (("pyramidal", mujoco.mjtCone.mjCONE_PYRAMIDAL),
+                       ("elliptic (the scene's)", mujoco.mjtCone.mjCONE_ELLIPTIC)):  # fmt: skip
+        ms_c = bench_gait(args.cycles, cone=int(cone))[2]
+        print(f"gait 0, friction cone {name}: {ms_c:.2f} ms wall per cycle")
     print(f"bare mj_step while standing: {bench_raw_steps(50_000):,.0f} steps/s")
     for w in (1, 2):
         print(
