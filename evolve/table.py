@@ -7,13 +7,14 @@ when the cycle began, and dH the heading change in degrees (< 0 = left, i.e. ant
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from evolve.io import read_json
 
 N_GAITS = 16
 ROBOT_NAME = "servobot"
@@ -89,14 +90,13 @@ def table_from_json(doc: dict[str, Any], *, name: str = "gait table") -> GaitTab
     for i, row in enumerate(rows):
         try:
             g = int(row["gait"])
-            if not 0 <= g < N_GAITS:
-                raise GaitTableError(f"{name}: row {i} names gait {g}, outside 0-15")
-            values[g] = [float(row[k]) for k in ("F", "T", "dH")]
-            std[g] = [float(row.get(k + "_std", math.nan)) for k in ("F", "T", "dH")]
+            ftdh = [float(row[k]) for k in ("F", "T", "dH")]
+            spread = [float(row.get(k + "_std", math.nan)) for k in ("F", "T", "dH")]
         except (KeyError, TypeError, ValueError) as exc:
-            if isinstance(exc, GaitTableError):
-                raise
             raise GaitTableError(f"{name}: row {i} is malformed ({exc!r})") from exc
+        if not 0 <= g < N_GAITS:
+            raise GaitTableError(f"{name}: row {i} names gait {g}, outside 0-15")
+        values[g], std[g] = ftdh, spread
         if g in seen:
             raise GaitTableError(f"{name}: gait {g} appears twice")
         seen.add(g)
@@ -111,14 +111,8 @@ def load_table(spec: str | Path | None = "paper") -> GaitTable:
     """Load a gait table: ``"paper"``/None for Figure 4, else a calibration JSON file path."""
     if spec is None or str(spec) == "paper":
         return GaitTable(PAPER_TABLE.copy(), None, {"source": "Parker & Zbeda, Figure 4"})
-    path = Path(spec)
-    try:
-        doc = json.loads(path.read_text())
-    except FileNotFoundError as exc:
-        raise GaitTableError(f"{path}: no such gait-table file") from exc
-    except json.JSONDecodeError as exc:
-        raise GaitTableError(f"{path}: not valid JSON ({exc})") from exc
-    return table_from_json(doc, name=str(path))
+    doc = read_json(spec, what="gait-table file", error=GaitTableError)
+    return table_from_json(doc, name=str(spec))
 
 
 def table_to_json(

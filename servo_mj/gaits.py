@@ -27,7 +27,6 @@ positive lift = foot up, on both sides). ``GaitLibrary.frames`` expands a row in
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from evolve.io import read_json
 from servo_mj.constants import LEGS, TRIPOD_A
 
 N_GAITS = 16
@@ -158,12 +158,7 @@ class GaitLibrary:
     def load(cls, path: str | Path | None = None) -> GaitLibrary:
         """Load gait parameters from JSON (default: the shipped fitted ``gait_params.json``)."""
         path = Path(path) if path is not None else PARAMS_JSON
-        try:
-            doc = json.loads(path.read_text())
-        except FileNotFoundError as exc:
-            raise ValueError(f"{path}: no such gait-parameter file") from exc
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc})") from exc
+        doc = read_json(path, what="gait-parameter file")
         return cls.from_dict(doc, name=str(path))
 
     @classmethod
