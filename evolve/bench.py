@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from evolve.codec import random_section
-from evolve.evaluate import evaluate
+from evolve.evaluation import evaluate
 from evolve.table import PAPER_TABLE
 
 LONG_START_POWER_V = 20.0

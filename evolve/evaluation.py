@@ -1,7 +1,6 @@
 """Public entry of the table simulation: ``evaluate`` a population on shared start poses.
 
-Import it as ``from evolve import evaluate`` or ``from evolve.evaluate import evaluate``
-(``import evolve.evaluate as m`` would bind the function, which shadows this module's name).
+Import it as ``from evolve import evaluate`` (or ``from evolve.evaluation import evaluate``).
 """
 
 from __future__ import annotations
