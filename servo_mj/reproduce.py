@@ -629,7 +629,14 @@ def write_report(
     if (out / "calibration" / "calibration.rrd").exists():
         rrds.insert(0, out / "calibration" / "calibration.rrd")
     lines += ["## 5. Recordings", "", "Open any run in the rerun viewer:", ""]
-    lines += [f"- `rerun {p.relative_to(out).as_posix()}`" for p in rrds] or ["*(none)*"]
+    by_folder: dict[str, list[str]] = {}
+    for p in rrds:
+        by_folder.setdefault(p.parent.relative_to(out).as_posix(), []).append(p.name)
+    for folder, names in by_folder.items():
+        more = f" ({len(names)} recordings in `{folder}/`)" if len(names) > 1 else ""
+        lines.append(f"- `rerun {folder}/{names[0]}`{more}")
+    if not by_folder:
+        lines.append("*(none)*")
     lines += [
         "",
         "Each holds the arena, the robot's bodies, the physics (orange) and table (blue) tracks,",

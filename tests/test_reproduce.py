@@ -79,7 +79,7 @@ def test_report_embeds_figures_and_lists_recordings(run_dir: tuple[Path, dict]) 
                 "coverage/figure10_pop0.png", "coverage/figure10_pop1.png"):  # fmt: skip
         assert f"]({fig})" in text
         assert (out / fig).exists()
-    assert "`rerun validation/pop1/run1.rrd`" in text
+    assert "`rerun validation/pop1/run0.rrd` (2 recordings in `validation/pop1/`)" in text
     assert "`rerun calibration/calibration.rrd`" in text
     assert "| **all** |" in text  # the reality-gap summary row
     assert '"coverage_generations": 2' in text
