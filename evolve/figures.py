@@ -22,6 +22,7 @@ import numpy as np  # noqa: E402
 from matplotlib import patches  # noqa: E402
 
 from evolve import geometry  # noqa: E402
+from evolve.interpreter import END_NAMES  # noqa: E402
 from evolve.io import atomic_write  # noqa: E402
 from evolve.settings import WorldSettings  # noqa: E402
 from evolve.table import GaitTable  # noqa: E402
@@ -32,8 +33,6 @@ DPI = 130
 """Resolution of the PNG files."""
 CONE_EDGE_LENGTH_FACTOR = 1.5
 """Lit-cone edges are drawn this many arena sides long (the axes clip them at the walls)."""
-END_NAMES = ("step limit", "kill zone", "power empty", "branch limit", "docked")
-"""Names of the end codes 0–4 (SPEC §4, ``evolve.evaluate``)."""
 
 
 def lit_mask(world: WorldSettings, step: float = LIT_GRID_STEP) -> np.ndarray:

@@ -43,6 +43,10 @@ class WorldSettings:
     """Docking needs the heading within ± this of ``dock_heading_deg`` [chosen]."""
     dock_point: tuple[float, float] = (465.0, 250.0)
     """Point whose distance scores navigation runs that do not dock (SPEC §6) [chosen]."""
+    dock_fitness: float = 2.0
+    """Navigation run that docks scores this − steps/navigation_steps (SPEC §6) [chosen]."""
+    approach_fitness: float = 0.5
+    """Navigation run that does not dock scores this · max(0, 1 − d_end/d_start) [chosen]."""
 
     lights: tuple[tuple[float, float], ...] = ((500.0, 235.0), (500.0, 265.0))
     """Point light sources, (x, y) units [paper: two points; positions chosen]."""

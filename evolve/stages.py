@@ -42,6 +42,7 @@ import numpy as np
 
 from evolve import ga as gaops
 from evolve.codec import write_chromosome
+from evolve.interpreter import END_DOCKED
 from evolve.io import atomic_write, atomic_write_json, atomic_write_text
 from evolve.settings import GASettings, WorldSettings, navigation_ga_settings, settings_json
 from evolve.table import GaitTable
@@ -56,8 +57,6 @@ INNER_SQUARES = 64
 """Inner squares of the coverage grid, the denominator of Figure 9 (SPEC §5)."""
 FIGURE10_START = (415.0, 252.0, 98.0)
 """Start pose (x, y, heading) of the Figure 10 tracks [paper]."""
-END_NAMES = ("step limit", "kill zone", "power empty", "branch limit", "docked")
-"""Names of the kernel's end codes 0–4."""
 HISTORY_COLUMNS = ("generation", "best_fitness", "mean_fitness", "docked_fraction", "unique")
 """Columns of ``history_pop{k}.csv``: per generation, on that generation's 10 starts;
 ``docked_fraction`` = fraction of all runs that docked at least once; ``unique`` = distinct
@@ -100,14 +99,16 @@ def coverage_starts(rng: np.random.Generator, n: int, world: WorldSettings) -> n
 def navigation_run_fitness(ev: Any, starts: np.ndarray, world: WorldSettings) -> np.ndarray:
     """Run fitness (P, S) of navigation (SPEC §6): 2 − steps/100 when the run docked, else
     0.5·max(0, 1 − d_end/d_start) with d the distance to ``world.dock_point`` (0 if
-    d_start = 0). ``steps/100`` uses ``world.navigation_steps`` as the divisor."""
+    d_start = 0). 2, 100 and 0.5 are ``world.dock_fitness``, ``world.navigation_steps`` and
+    ``world.approach_fitness``."""
     dx, dy = world.dock_point
     d_start = np.hypot(starts[:, 0] - dx, starts[:, 1] - dy)[None, :]
     d_end = np.hypot(ev.final_pose[..., 0] - dx, ev.final_pose[..., 1] - dy)
     ratio = np.divide(d_end, d_start, out=np.ones_like(d_end), where=d_start > 0)
-    near = 0.5 * np.maximum(0.0, 1.0 - ratio)
-    docked = np.asarray(ev.end) == 4
-    return np.where(docked, 2.0 - np.asarray(ev.steps) / world.navigation_steps, near)
+    near = world.approach_fitness * np.maximum(0.0, 1.0 - ratio)
+    docked = np.asarray(ev.end) == END_DOCKED
+    dock_score = world.dock_fitness - np.asarray(ev.steps) / world.navigation_steps
+    return np.where(docked, dock_score, near)
 
 
 def coverage_run_fitness(ev: Any, starts: np.ndarray, world: WorldSettings) -> np.ndarray:
@@ -339,7 +340,7 @@ def evolve_population(
             starts = stage.starts(rng, ga.starts_per_generation, world)
             run_fit, ev, first, inverse = evaluate_sections(pop, starts, stage, table, world)
             fitness = run_fit.mean(axis=1)
-            docked = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == 4)
+            docked = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == END_DOCKED)
             docked_frac = float(docked[inverse].mean())
             best_i = int(np.argmax(fitness))
             row = (gen, float(fitness[best_i]), float(fitness.mean()), docked_frac, len(first))
@@ -481,7 +482,7 @@ def run_navigation(
     )
     bests = np.stack([r.best for r in results])
     run_fit, ev, _, inverse = evaluate_sections(bests, test_starts, stage, table, world)
-    docked = (np.asarray(ev.end) == 4)[inverse]
+    docked = (np.asarray(ev.end) == END_DOCKED)[inverse]
     steps = np.asarray(ev.steps)[inverse]
     test_fit = run_fit.mean(axis=1)
     chosen = int(np.argmax(test_fit))
