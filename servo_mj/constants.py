@@ -23,6 +23,9 @@ ROBOT_XML = MODEL_DIR / "servobot.xml"
 SCENE_XML = MODEL_DIR / "scene.xml"
 """The robot on a floor with a light (calibration scene)."""
 
+CM_PER_M = 100.0
+"""Arena units (1 unit = 1 cm) per MuJoCo metre (SPEC §1) [chosen]."""
+
 ROBOT_MODEL_NAME = "servobot"
 """MJCF ``model`` attribute; ``dm_control.mjcf`` prefixes attached names with ``servobot/``."""
 ATTACHED_PREFIX = ROBOT_MODEL_NAME + "/"

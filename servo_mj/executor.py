@@ -23,7 +23,7 @@ from servo_mj.model import free_joint_of, heading_deg_from_xmat, name_id
 from servo_mj.settings import PhysicsSettings
 
 Pose = tuple[float, float, float]
-CM_PER_M = 100.0
+CM_PER_M = C.CM_PER_M
 _DEFAULT_PHYSICS = PhysicsSettings()
 
 

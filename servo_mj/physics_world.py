@@ -25,6 +25,7 @@ import numpy as np
 from evolve import geometry
 from evolve.settings import WorldSettings
 from servo_mj.arena import ArenaModel, ArenaSettings, RobotSpec, compile_arena, overlaps_station
+from servo_mj.constants import CM_PER_M
 from servo_mj.sensors import physics_object_sensors, ray_ranges_m
 
 _CACHE: dict[tuple, ArenaModel] = {}
@@ -135,7 +136,7 @@ class PhysicsWorld:
     def ray_ranges_cm(self) -> tuple[np.ndarray, np.ndarray]:
         """Rangefinder readings (cm; −1 = no hit) of the left and right fans."""
         left, right = ray_ranges_m(self.model, self.data, self.colony.object_index)
-        return (np.where(left < 0, -1.0, left * 100.0), np.where(right < 0, -1.0, right * 100.0))
+        return tuple(np.where(r < 0, -1.0, r * CM_PER_M) for r in (left, right))
 
 
 def sample_poses(
@@ -163,7 +164,7 @@ def sample_poses(
 
 def near_station(x: float, y: float, world: WorldSettings, arena: ArenaSettings) -> bool:
     """Whether the station block can be within object range while the wall behind it is not."""
-    depth = arena.station_depth_m * 100.0
+    depth = arena.station_depth_m * CM_PER_M
     reach = world.object_range + depth
     return x > world.arena_size - reach and abs(y - world.station_y) < (
         world.station_width / 2 + world.object_range

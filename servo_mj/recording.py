@@ -46,15 +46,9 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from evolve import geometry
+from evolve.codec import LIGHT_LEFT, LIGHT_RIGHT, LOW_POWER, OBJECT_LEFT, OBJECT_RIGHT
 from evolve.settings import WorldSettings
-
-try:  # H2's codec owns the sensor bits; the values below are the same (SPEC §4).
-    from evolve.codec import LIGHT_LEFT, LIGHT_RIGHT, LOW_POWER, OBJECT_LEFT, OBJECT_RIGHT
-except ImportError:  # pragma: no cover - only before evolve.codec lands
-    OBJECT_RIGHT, OBJECT_LEFT, LOW_POWER, LIGHT_RIGHT, LIGHT_LEFT = 1, 2, 4, 8, 16
-
-UNITS_PER_M = 100.0
-"""Arena units (cm) per metre (SPEC §1)."""
+from servo_mj.constants import CM_PER_M
 
 SENSORS: tuple[tuple[str, int], ...] = (
     ("object_right", OBJECT_RIGHT),
@@ -111,7 +105,7 @@ _OTHER_COLOR = (150, 150, 150)
 
 def arena_to_m(x_cm: float, y_cm: float) -> tuple[float, float]:
     """Arena (x, y) in cm → MuJoCo world (x, y) in metres."""
-    return x_cm / UNITS_PER_M, y_cm / UNITS_PER_M
+    return x_cm / CM_PER_M, y_cm / CM_PER_M
 
 
 def heading_to_yaw_rad(heading_deg: float) -> float:
@@ -283,7 +277,7 @@ class Recording:
         kill zone, lit-cone edges and the dark area, all in metres on z ≈ 0."""
         self._world = world
         s, log = self.settings, self.rec.log
-        size = world.arena_size / UNITS_PER_M
+        size = world.arena_size / CM_PER_M
         z = s.plane_z_m
         half = size / 2
         log(
@@ -311,8 +305,8 @@ class Recording:
             ),
             static=True,
         )
-        sy = world.station_y / UNITS_PER_M
-        sw = world.station_width / UNITS_PER_M
+        sy = world.station_y / CM_PER_M
+        sw = world.station_width / CM_PER_M
         d, sh = s.station_depth_m, s.station_height_m
         log(
             "world/arena/station",
@@ -342,11 +336,9 @@ class Recording:
         for j in range(n):
             for i in range(n):
                 x0, y0 = i * q, j * q
-                sq.append(_rect_strip(x0, y0, x0 + q, y0 + q, z * UNITS_PER_M) / UNITS_PER_M)
+                sq.append(_rect_strip(x0, y0, x0 + q, y0 + q, z * CM_PER_M) / CM_PER_M)
                 cx, cy = x0 + q / 2, y0 + q / 2
-                cz.append(
-                    _rect_strip(cx - hw, cy - hw, cx + hw, cy + hw, z * UNITS_PER_M) / UNITS_PER_M
-                )
+                cz.append(_rect_strip(cx - hw, cy - hw, cx + hw, cy + hw, z * CM_PER_M) / CM_PER_M)
                 if 1 <= i <= n - 2 and 1 <= j <= n - 2:
                     inner_centres.append((cx, cy))
         log(
@@ -363,7 +355,7 @@ class Recording:
         log(
             "world/arena/inner",
             rr.LineStrips3D(
-                [_rect_strip(lo, lo, hi, hi, 2 * z * UNITS_PER_M) / UNITS_PER_M],
+                [_rect_strip(lo, lo, hi, hi, 2 * z * CM_PER_M) / CM_PER_M],
                 radii=0.006,
                 colors=[(40, 160, 40)],
                 labels=["inner 64"],
@@ -375,7 +367,7 @@ class Recording:
         log(
             "world/arena/kill_zone",
             rr.LineStrips3D(
-                [_rect_strip(k, k, size_cm - k, size_cm - k, 2 * z * UNITS_PER_M) / UNITS_PER_M],
+                [_rect_strip(k, k, size_cm - k, size_cm - k, 2 * z * CM_PER_M) / CM_PER_M],
                 radii=0.006,
                 colors=[(220, 40, 40)],
                 labels=["kill zone edge"],
@@ -390,8 +382,7 @@ class Recording:
                     lx, ly, world.light_axis_deg + sgn * world.light_half_angle_deg, size_cm
                 )
                 edges.append(
-                    np.array([[lx, ly, 3 * z * UNITS_PER_M], [hx, hy, 3 * z * UNITS_PER_M]])
-                    / UNITS_PER_M
+                    np.array([[lx, ly, 3 * z * CM_PER_M], [hx, hy, 3 * z * CM_PER_M]]) / CM_PER_M
                 )
         log(
             "world/arena/cones",
@@ -401,7 +392,7 @@ class Recording:
         verts, tris = [], []
         for poly in dark_polygons(world):
             base = len(verts)
-            verts += [[px / UNITS_PER_M, py / UNITS_PER_M, 2 * z] for px, py in poly]
+            verts += [[px / CM_PER_M, py / CM_PER_M, 2 * z] for px, py in poly]
             tris += [[base, base + m, base + m + 1] for m in range(1, len(poly) - 1)]
         if tris:
             log(
@@ -600,7 +591,7 @@ class Recording:
             main: _Series = buf["main"]
             if main.n:
                 idx = main.time_columns()
-                seg = np.array(main.rows["seg"], dtype=np.float64) / UNITS_PER_M  # (n, 2, 2)
+                seg = np.array(main.rows["seg"], dtype=np.float64) / CM_PER_M  # (n, 2, 2)
                 strips = np.concatenate([seg, np.full((main.n, 2, 1), s.track_z_m)], axis=2)
                 self.rec.send_columns(
                     f"world/track/{name}",
@@ -638,8 +629,8 @@ class Recording:
                     lens.append(len(reached))
                     for r in reached:
                         cx, cy = square_centre(r, w)
-                        cent.append([cx / UNITS_PER_M, cy / UNITS_PER_M, s.plane_z_m * 2])
-                half = w.square_size / 2 / UNITS_PER_M * (0.9 if name == "physics" else 0.55)
+                        cent.append([cx / CM_PER_M, cy / CM_PER_M, s.plane_z_m * 2])
+                half = w.square_size / 2 / CM_PER_M * (0.9 if name == "physics" else 0.55)
                 self.rec.send_columns(
                     f"world/squares/{name}",
                     indexes=sq.time_columns(),
@@ -789,7 +780,6 @@ __all__ = [
     "Recording",
     "RecordingSettings",
     "SENSORS",
-    "UNITS_PER_M",
     "arena_to_m",
     "dark_polygons",
     "heading_to_yaw_rad",

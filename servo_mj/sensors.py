@@ -24,9 +24,7 @@ import mujoco
 import numpy as np
 
 from evolve.settings import WorldSettings
-
-CM_PER_M = 100.0
-"""Arena units (cm) per MuJoCo metre (SPEC §1)."""
+from servo_mj.constants import CM_PER_M
 
 SIDES = ("left", "right")
 """Object-sensor sides, in the order the World protocol returns them."""
