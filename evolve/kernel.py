@@ -69,6 +69,29 @@ def _mark(sq, lo, hi):
     return lo, hi | bit, True
 
 
+@njit(cache=True, inline="always")
+def _walk(gait, table, p, x, y, h, power, lo, hi, squares, inner):
+    """One gait cycle and the post-step checks, kill zone → power empty → mark square.
+
+    Returns (x, y, h, power, lo, hi, squares, inner, end) with end = −1 when the run goes on.
+    """
+    x, y, h = move(x, y, h, table[gait, 0], table[gait, 1], table[gait, 2])
+    if gait != int(p[P_STILL]):
+        power = power - p[P_COST]
+    if killed(x, y, p):
+        return x, y, h, power, lo, hi, squares, inner, END_KILL_ZONE
+    if power < p[P_EMPTY]:
+        return x, y, h, power, lo, hi, squares, inner, END_POWER_EMPTY
+    sq = square_at(x, y, p)
+    if sq >= 0:
+        lo, hi, new = _mark(sq, lo, hi)
+        if new:
+            squares += 1
+            if square_is_inner(sq, p):
+                inner += 1
+    return x, y, h, power, lo, hi, squares, inner, -1
+
+
 @njit(cache=True)
 def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_steps):
     """Run one chromosome (decoded, (G,) and (G, 4) arrays) from pose (x, y, h).
@@ -76,10 +99,7 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
     Returns (squares, inner, steps, docks, end, x, y, h) — the interpreter's ``RunResult``.
     """
     n_genes = loops.shape[0]
-    still = int(p[P_STILL])
-    cost = p[P_COST]
     low = p[P_LOW]
-    empty = p[P_EMPTY]
     max_branches = int(p[P_MAX_BRANCH])
     backup = int(p[P_BACKUP_GAIT])
     n_backup = int(p[P_BACKUP_N])
@@ -102,24 +122,13 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
         in_nav = nav_run or g >= _NAV_BASE
         if ops[g, k] == 0:
             gait = arg[g, k]
-            x, y, h = move(x, y, h, table[gait, 0], table[gait, 1], table[gait, 2])
-            if gait != still:
-                power = power - cost
+            x, y, h, power, lo, hi, squares, inner, end = _walk(
+                gait, table, p, x, y, h, power, lo, hi, squares, inner
+            )
             steps += 1
             branches = 0
-            if killed(x, y, p):
-                end = END_KILL_ZONE
+            if end >= 0:
                 break
-            if power < empty:
-                end = END_POWER_EMPTY
-                break
-            sq = square_at(x, y, p)
-            if sq >= 0:
-                lo, hi, new = _mark(sq, lo, hi)
-                if new:
-                    squares += 1
-                    if square_is_inner(sq, p):
-                        inner += 1
             if in_nav and docked(x, y, h, p):
                 docks += 1
                 if nav_run:
@@ -132,25 +141,13 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
                 power = charged
                 stop = False
                 for _ in range(n_backup):
-                    x, y, h = move(x, y, h, table[backup, 0], table[backup, 1], table[backup, 2])
-                    if backup != still:
-                        power = power - cost
+                    x, y, h, power, lo, hi, squares, inner, end = _walk(
+                        backup, table, p, x, y, h, power, lo, hi, squares, inner
+                    )
                     steps += 1
-                    if killed(x, y, p):
-                        end = END_KILL_ZONE
+                    if end >= 0:
                         stop = True
                         break
-                    if power < empty:
-                        end = END_POWER_EMPTY
-                        stop = True
-                        break
-                    sq = square_at(x, y, p)
-                    if sq >= 0:
-                        lo, hi, new = _mark(sq, lo, hi)
-                        if new:
-                            squares += 1
-                            if square_is_inner(sq, p):
-                                inner += 1
                     if steps >= max_steps:
                         end = END_STEP_LIMIT
                         stop = True
