@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from chromosome_text import B, G, gene
 
 from evolve.codec import (
     ChromosomeError,
@@ -16,21 +17,6 @@ from evolve.codec import (
     read_chromosome,
     write_chromosome,
 )
-
-
-def G(gait: int) -> str:
-    """Gait instruction text: 0, 4 gait bits, 2 unused bits."""
-    return f"0{gait:04b}00"
-
-
-def B(test: int, target: int) -> str:
-    """Branch instruction text: 1, 3 test bits, 3 target bits."""
-    return f"1{test:03b}{target:03b}"
-
-
-def gene(loop: str, *instrs: str) -> str:
-    return " ".join((loop,) + instrs)
-
 
 FILLER = gene("01", G(7), G(7), G(7), G(7))
 

@@ -6,9 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from chromosome_text import STILL, B, G, chrom, gene
 
 from evolve import geometry as geo
-from evolve.codec import TEST_MASKS, parse_chromosome
+from evolve.codec import TEST_MASKS
 from evolve.interpreter import (
     END_BRANCH_LIMIT,
     END_DOCKED,
@@ -25,26 +26,6 @@ from evolve.world import TableWorld
 COST = 0.0209
 ZERO_TABLE = np.zeros((16, 3))
 """Gaits that do not move: control flow and power alone."""
-
-
-def G(gait: int) -> str:
-    return f"0{gait:04b}00"
-
-
-def B(test: int, target: int) -> str:
-    return f"1{test:03b}{target:03b}"
-
-
-def gene(loop: str, *instrs: str) -> str:
-    return " ".join((loop,) + instrs)
-
-
-STILL = gene("00", G(7), G(7), G(7), G(7))
-
-
-def chrom(*genes: str, n: int = 16) -> np.ndarray:
-    """Chromosome from the given genes, the rest filled with ``STILL``."""
-    return parse_chromosome("\n".join(list(genes) + [STILL] * (n - len(genes))))
 
 
 def trace(bits, pose, *, mode="coverage", table=ZERO_TABLE, **kw):

@@ -7,9 +7,9 @@ import dataclasses
 import numba
 import numpy as np
 import pytest
+from chromosome_text import STILL, B, G, chrom, gene
 
 from evolve import evaluate
-from evolve.codec import parse_chromosome
 from evolve.geometry import apply_gait
 from evolve.interpreter import (
     END_BRANCH_LIMIT,
@@ -28,25 +28,6 @@ DEFAULT_WORLD = WorldSettings()
 SIDESTEP_TABLE = np.zeros((16, 3))
 SIDESTEP_TABLE[15] = (0.0, -60.0, 0.0)
 """Backing up steps 60 to the left: from the dock facing east, north into the kill zone."""
-
-
-def G(gait: int) -> str:
-    return f"0{gait:04b}00"
-
-
-def B(test: int, target: int) -> str:
-    return f"1{test:03b}{target:03b}"
-
-
-def gene(loop: str, *instrs: str) -> str:
-    return " ".join((loop,) + instrs)
-
-
-STILL = gene("00", G(7), G(7), G(7), G(7))
-
-
-def chrom(*genes: str, n: int = 16) -> np.ndarray:
-    return parse_chromosome("\n".join(list(genes) + [STILL] * (n - len(genes))))
 
 
 def starts_in(rng, n, lo, hi) -> np.ndarray:
