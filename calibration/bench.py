@@ -15,9 +15,9 @@ import time
 import mujoco
 import numpy as np
 
-from servo_mj.executor import ServoBot
-from servo_mj.model import load_robot
-from servo_mj.settings import PhysicsSettings
+from servo_mj.robot.bot import ServoBot
+from servo_mj.robot.model import load_robot
+from servo_mj.robot.settings import PhysicsSettings
 
 
 def bench_gait(cycles: int, gait: int = 0, cone: int | None = None) -> tuple[float, float, float]:

@@ -1,7 +1,7 @@
 """Fit the gait rows so that the physics reproduces Figure 4 (``servobot calibrate --fit``).
 
 Each gait is fitted on its own (scipy.optimize Nelder-Mead) over four of its row parameters,
-``(left, right, left_offset, right_offset)`` (see ``servo_mj.gaits``); ``lift`` stays as set.
+``(left, right, left_offset, right_offset)`` (see ``servo_mj.robot.gaits``); ``lift`` stays as set.
 One evaluation runs the exact calibration walk of that gait (``measure.measure_gait``:
 settling cycles, then ``cycles`` measured cycles, same seed and noise) and scores the mean
 (F, T, dH) against the paper with residuals scaled by the tolerances (1 cm, 1 cm, 1.5°). The
@@ -22,14 +22,12 @@ from scipy.optimize import minimize
 from calibration.measure import measure_gait
 from calibration.report import TOLERANCE
 from evolve.table import PAPER_TABLE
-from servo_mj.gaits import N_GAITS, GaitLibrary, check_gait
-from servo_mj.model import load_robot
-from servo_mj.settings import CALIBRATION_NOISE_RAD
+from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
+from servo_mj.robot.model import load_robot, thrust_limit_rad
+from servo_mj.robot.settings import CALIBRATION_NOISE_RAD
 
 FIXED_GAITS = (7,)
 """Gaits without fitted parameters (stand still)."""
-THRUST_LIMIT_RAD = 1.05
-"""Thrust servo ctrlrange half-width, rad (``servobot.xml`` class ``thrust``)."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +73,7 @@ def fit_gait(
     target = PAPER_TABLE[g] if target is None else np.asarray(target, dtype=float)
     lift = library.rows[g][4]
     model, _ = load_robot(scene=True)
+    limit = thrust_limit_rad(model)
     best: dict = {"cost": np.inf, "x": None, "mean": None, "n": 0}
 
     def cost(x: np.ndarray) -> float:
@@ -84,7 +83,7 @@ def fit_gait(
             abs(left_offset) + library.stride_rad * abs(left),
             abs(right_offset) + library.stride_rad * abs(right),
         )
-        penalty = 100.0 * max(0.0, reach - THRUST_LIMIT_RAD) ** 2
+        penalty = 100.0 * max(0.0, reach - limit) ** 2
         lib = library.with_row(g, (*params, lift))
         per_cycle = measure_gait(
             g,

@@ -9,7 +9,8 @@ SPEC §6 navigation starts (those overlapping the station block are skipped) —
 docking. ``--robot-xml``: a variant of ``models/servobot/servobot.xml`` (e.g. other probes).
 
 Runs the chromosome (coverage mode) in the physics world from the same seeded start poses as
-``servobot validate`` (``draw_starts``) and logs every gait cycle the interpreter executes.
+``servobot validate`` (``evolve.starts.coverage_starts``) and logs every gait cycle the
+interpreter executes.
 Each cycle's physical move (F, T cm, dH deg, in the frame the robot had when it began) is
 compared with the table row of its gait. It prints the residual (physics − table) per gait,
 for cycles that repeat the previous gait vs cycles after a gait change, and the first cycle
@@ -29,13 +30,13 @@ import numpy as np
 from evolve.codec import read_chromosome
 from evolve.interpreter import END_NAMES, run
 from evolve.settings import WorldSettings
+from evolve.starts import coverage_starts, navigation_starts
 from evolve.table import load_table
 from evolve.world import TableWorld
-from servo_mj.arena import ArenaSettings, default_robot, overlaps_station
-from servo_mj.executor import displacement
-from servo_mj.physics_world import PhysicsWorld
-from servo_mj.settings import PhysicsSettings
-from servo_mj.validate_cli import draw_starts
+from servo_mj.robot.bot import displacement
+from servo_mj.robot.settings import PhysicsSettings
+from servo_mj.world.arena import ArenaSettings, default_robot, overlaps_station
+from servo_mj.world.physics_world import PhysicsWorld
 
 
 class LoggingWorld:
@@ -98,15 +99,13 @@ def main(argv: list[str] | None = None) -> int:
         robot = dataclasses.replace(default_robot(), xml=Path(a.robot_xml).resolve())
     mode = "navigation" if a.navigation else "coverage"
     if a.navigation:
-        from evolve.stages import navigation_starts
-
         starts = navigation_starts(np.random.default_rng(a.seed), 2 * a.starts, world)
         starts = [s for s in starts if not overlaps_station(s[0], s[1], world, arena)]
         starts = np.asarray(starts[: a.starts])
         if a.steps == 600:
             a.steps = world.navigation_steps
     else:
-        starts = draw_starts(a.starts, np.random.default_rng(a.seed), world)
+        starts = coverage_starts(np.random.default_rng(a.seed), a.starts, world)
     all_res: list[tuple[int, int, np.ndarray]] = []
     dump: list[list[float]] = []
     ends: Counter[str] = Counter()
@@ -132,8 +131,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{r[0]:3d}  {r[1]:5d} {r[2]:5d}      {r[3]:5d} {r[4]:5d}     {r[5]:5d} {r[6]:5d}"
               f"     {r[7]} | {r[8]}")  # fmt: skip
     ti, pi = np.mean([r[1] for r in rows]), np.mean([r[2] for r in rows])
-    print(f"mean inner % of 64: table {100 * ti / 64:.1f}, physics {100 * pi / 64:.1f}, "
-          f"gap {100 * (ti - pi) / 64:+.1f} pp")  # fmt: skip
+    n = world.inner_square_count
+    print(f"mean inner % of {n}: table {100 * ti / n:.1f}, physics {100 * pi / n:.1f}, "
+          f"gap {100 * (ti - pi) / n:+.1f} pp")  # fmt: skip
     print("ends table:", dict(t_ends), " physics:", dict(ends))
     if a.navigation:
         docked = [(r[5], r[6]) for r in rows]

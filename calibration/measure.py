@@ -19,10 +19,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from servo_mj.executor import CycleResult, ServoBot
-from servo_mj.gaits import N_GAITS, GaitLibrary, check_gait
-from servo_mj.model import load_robot
-from servo_mj.settings import CALIBRATION_NOISE_RAD, PhysicsSettings
+from servo_mj.robot.bot import CycleResult, ServoBot
+from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
+from servo_mj.robot.model import load_robot
+from servo_mj.robot.settings import CALIBRATION_NOISE_RAD, PhysicsSettings
 
 
 @dataclass(frozen=True)
@@ -43,6 +43,15 @@ class CalibrationSettings:
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+    def measure_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of ``measure_gait`` / ``measure_all`` for these settings."""
+        return {
+            "cycles": self.cycles,
+            "settle_cycles": self.settle_cycles,
+            "seed": self.seed,
+            "noise_rad": self.noise_rad,
+        }
 
 
 DEFAULTS = CalibrationSettings()

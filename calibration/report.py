@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from evolve.io import atomic_write
 from evolve.table import PAPER_TABLE
+from infra.io import atomic_write
 
 TOLERANCE = np.array([1.0, 1.0, 1.5])
 """Target accuracy of (F cm, T cm, dH deg) against Figure 4 (issue 2)."""

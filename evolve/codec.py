@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from evolve.io import atomic_write_text
+from infra.io import atomic_write_text
 
 GENE_BITS = 30
 """Bits per gene: 2 loop bits + 4 instructions of 7 bits."""

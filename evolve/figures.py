@@ -23,9 +23,9 @@ from matplotlib import patches  # noqa: E402
 
 from evolve import geometry  # noqa: E402
 from evolve.interpreter import END_NAMES  # noqa: E402
-from evolve.io import atomic_write  # noqa: E402
 from evolve.settings import WorldSettings  # noqa: E402
 from evolve.table import GaitTable  # noqa: E402
+from infra.io import atomic_write  # noqa: E402
 
 LIT_GRID_STEP = 2.5
 """Resolution of the lit/dark shading, arena units."""

@@ -95,6 +95,12 @@ class WorldSettings:
     navigation_start_xy: tuple[float, float] = (25.0, 475.0)
     """Navigation start poses: x and y range, units [chosen]."""
 
+    @property
+    def inner_square_count(self) -> int:
+        """Inner squares (1 ≤ i, j ≤ grid_n − 2): 64 on the 10 × 10 grid, Figure 9's
+        denominator."""
+        return (self.grid_n - 2) ** 2
+
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 

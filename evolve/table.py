@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from evolve.io import read_json
+from infra.io import read_json
 
 N_GAITS = 16
 ROBOT_NAME = "servobot"

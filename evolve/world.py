@@ -2,7 +2,7 @@
 
 The controller semantics have one home, the interpreter (``evolve.interpreter``), which runs
 against any object with this interface. ``TableWorld`` applies gait-table rows; the physics
-world (``servo_mj.physics_world``) walks the MuJoCo ServoBot. Power, squares, the kill zone,
+world (``servo_mj.world.physics_world``) walks the MuJoCo ServoBot. Power, squares, the kill zone,
 docking and the low-power sensor belong to the interpreter, not to the world.
 """
 

@@ -1,4 +1,5 @@
-"""MuJoCo side of the ServoBot colony: model loading, gaits, arena, physics sensors, validation."""
+"""MuJoCo side of the ServoBot colony: the robot (``servo_mj.robot``) and the world it walks
+in (``servo_mj.world``)."""
 
 import os
 

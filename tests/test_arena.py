@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from evolve.settings import WorldSettings
-from servo_mj import constants as C
-from servo_mj.arena import ArenaSettings, compile_arena, warnings_raised
-from servo_mj.sensors import SIDES, ray_bearings_deg, ray_direction, ray_ranges_m, sensor_name
+from servo_mj.robot import constants as C
+from servo_mj.world.arena import ArenaSettings, compile_arena, warnings_raised
+from servo_mj.world.sensors import SIDES, ray_bearings_deg, ray_direction, ray_ranges_m, sensor_name
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +77,7 @@ def test_fan_bearings_include_both_span_ends_and_rays_are_horizontal():
 
 
 def test_compiles_and_stands_a_second_with_no_warnings(colony):
-    from servo_mj.executor import ServoBot
+    from servo_mj.robot.bot import ServoBot
 
     m = colony.model
     d = mujoco.MjData(m)
@@ -97,7 +97,7 @@ def test_rays_never_hit_the_robot_while_it_walks(colony):
     (object range 0.5 m; the robot's own legs and probes lie within 0.26 m of the sites).
     While the torso pitches a few degrees mid-cycle a ray may pass over a far wall (−1) or meet
     the floor beyond 1 m; neither can fire an object sensor."""
-    from servo_mj.executor import ServoBot
+    from servo_mj.robot.bot import ServoBot
 
     m = colony.model
     d = mujoco.MjData(m)

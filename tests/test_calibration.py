@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from calibration import cli
 from calibration.fit import FitSettings, fit_gait, scaled_residual
 from calibration.measure import measure_gait, measure_gaits
 from evolve.table import PAPER_TABLE, GaitTableError, load_table
-from servo_mj.gaits import PARAMS_JSON, GaitLibrary
+from servo_mj.robot.gaits import PARAMS_JSON, GaitLibrary
+from servobot.cli import calibrate as cli
 
 
 def test_measure_gaits_shape_nan_rows_and_stand_still() -> None:
@@ -105,7 +105,7 @@ def test_a_malformed_table_file_is_rejected_by_name(tmp_path) -> None:
 
 
 def test_cli_records_a_rerun_file(tmp_path) -> None:
-    pytest.importorskip("servo_mj.recording")
+    pytest.importorskip("servobot.recording")
     rrd = tmp_path / "cal.rrd"
     assert cli.main(["--cycles", "1", "--out", str(tmp_path), "--rrd", str(rrd)]) == 0
     assert rrd.stat().st_size > 10_000

@@ -2,7 +2,7 @@
 
 import sys
 
-from servo_mj import cli
+from servobot import cli
 
 
 def test_usage_lists_every_command(capsys):

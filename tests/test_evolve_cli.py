@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from evolve import __main__ as evolve_main
-from evolve import cli, trace
 from evolve.codec import read_chromosome, write_chromosome
 from evolve.table import PAPER_TABLE
-from servo_mj.cli import main as servobot
+from servobot.cli import evolve as cli
+from servobot.cli import main as servobot
+from servobot.cli import trace
 
 TINY = ["--populations", "2", "--population-size", "8", "--no-progress"]
 ROOT = Path(__file__).resolve().parents[1]
@@ -74,7 +74,7 @@ def test_coverage_outputs(run_dir):
 def test_resume_of_a_finished_run_changes_nothing(run_dir, capsys):
     before = (run_dir / "coverage/figure9.csv").read_text()
     args = ["coverage", *TINY, "--generations", "3", "--out", str(run_dir), "--resume"]
-    assert evolve_main.main(args) == 0  # python -m evolve shorthand
+    assert servobot(["evolve", *args]) == 0
     assert (run_dir / "coverage/figure9.csv").read_text() == before
     assert "Figure 9 at generation 3" in capsys.readouterr().out
 
@@ -104,7 +104,7 @@ def test_resume_with_other_settings_exits_2(run_dir, capsys):
 
 def test_evolve_help_needs_no_mujoco():
     code = (
-        "import sys\nfrom servo_mj.cli import main\n"
+        "import sys\nfrom servobot.cli import main\n"
         "try:\n    main(['evolve', '--help'])\nexcept SystemExit:\n    pass\n"
         "assert 'mujoco' not in sys.modules, 'mujoco imported'\n"
     )
@@ -196,7 +196,7 @@ def test_trace_text_one_line_per_event(forward, capsys):
 def test_trace_16_genes_defaults_to_coverage(tmp_path, capsys):
     bits = np.zeros((16, 30), dtype=np.uint8)
     path = write_chromosome(tmp_path / "full.txt", bits)
-    assert evolve_main.main(["trace", str(path), "--start", "250", "250", "0", "--json"]) == 0
+    assert servobot(["trace", str(path), "--start", "250", "250", "0", "--json"]) == 0
     events = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert events[0]["mode"] == "coverage"
     assert events[-1]["kind"] == "end"

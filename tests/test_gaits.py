@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from servo_mj.executor import PhysicsError, ServoBot, displacement
-from servo_mj.gaits import N_GAITS, GaitLibrary
-from servo_mj.model import load_robot
-from servo_mj.settings import PhysicsSettings
+from servo_mj.robot.bot import PhysicsError, ServoBot, displacement
+from servo_mj.robot.gaits import N_GAITS, GaitLibrary
+from servo_mj.robot.model import load_robot
+from servo_mj.robot.settings import PhysicsSettings
 
 LIB = GaitLibrary.load()
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from evolve.settings import WorldSettings
-from servo_mj import constants as C
-from servo_mj.executor import ServoBot
-from servo_mj.model import free_joint_of, load_robot
+from servo_mj.robot import constants as C
+from servo_mj.robot.bot import ServoBot
+from servo_mj.robot.model import free_joint_of, load_robot
 
 
 def test_robot_and_scene_compile_with_12_servos_named_after_joints() -> None:

@@ -14,9 +14,9 @@ from evolve.interpreter import END_STEP_LIMIT, run
 from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE
 from evolve.world import TableWorld
-from servo_mj.arena import ArenaSettings
-from servo_mj.executor import displacement
-from servo_mj.physics_world import PhysicsWorld
+from servo_mj.robot.bot import displacement
+from servo_mj.world.arena import ArenaSettings
+from servo_mj.world.physics_world import PhysicsWorld
 
 W = WorldSettings()
 

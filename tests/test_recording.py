@@ -18,7 +18,7 @@ from evolve.interpreter import StepEvent, run
 from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE
 from evolve.world import TableWorld
-from servo_mj.recording import (
+from servobot.recording import (
     Recording,
     arena_to_m,
     dark_polygons,
@@ -170,7 +170,7 @@ def test_recording_loads_back_with_expected_entities(tmp_path: Path) -> None:
 
 
 def test_calibration_cycles_and_buffer_flushes(tmp_path: Path) -> None:
-    from servo_mj.recording import RecordingSettings
+    from servobot.recording import RecordingSettings
 
     path = tmp_path / "calib.rrd"
     model = mujoco.MjModel.from_xml_string(TINY_MJCF)

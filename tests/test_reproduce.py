@@ -12,10 +12,10 @@ import rerun as rr
 
 from evolve.codec import read_chromosome
 from evolve.table import load_table
-from servo_mj.reproduce import (
+from servobot.cli.reproduce import main
+from servobot.reproduce import (
     ReproduceError,
     ReproduceSettings,
-    main,
     quick_settings,
     reproduce,
     stage_key,
@@ -41,7 +41,7 @@ TINY = ReproduceSettings(
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("reproduce")
-    res = reproduce(out, settings=TINY, workers=1, progress=False, log=lambda _m: None)
+    res = reproduce(out, settings=TINY, workers=1, log=lambda _m: None)
     return out, res
 
 
@@ -89,7 +89,7 @@ def test_second_call_skips_finished_stages(run_dir: tuple[Path, dict]) -> None:
     out, first = run_dir
     marker = out / "coverage" / "done.json"
     before = marker.read_text()
-    res = reproduce(out, settings=TINY, workers=1, progress=False, log=lambda _m: None)
+    res = reproduce(out, settings=TINY, workers=1, log=lambda _m: None)
     assert all(st["skipped"] for st in res["stages"].values())
     assert marker.read_text() == before
     for name, st in res["stages"].items():  # earlier wall times are reported, not zero
@@ -103,7 +103,7 @@ def test_interrupted_validation_resumes_per_finalist(run_dir: tuple[Path, dict])
     for f in (out / "validation" / "pop1").iterdir():
         f.unlink()
     kept = (out / "validation" / "pop0" / "report.json").stat().st_mtime_ns
-    res = reproduce(out, settings=TINY, workers=1, progress=False, log=lambda _m: None)
+    res = reproduce(out, settings=TINY, workers=1, log=lambda _m: None)
     val = res["stages"]["validation"]
     assert not val["skipped"]
     assert val["finalists"]["0"]["skipped"] and not val["finalists"]["1"]["skipped"]
@@ -117,7 +117,7 @@ def test_other_settings_in_the_same_folder_are_refused(run_dir: tuple[Path, dict
     other = dataclasses.replace(TINY, coverage_generations=3)
     report = (out / "REPORT.md").read_text()
     with pytest.raises(ReproduceError, match="coverage_generations"):
-        reproduce(out, settings=other, workers=1, progress=False, log=lambda _m: None)
+        reproduce(out, settings=other, workers=1, log=lambda _m: None)
     assert (out / "REPORT.md").read_text() == report  # nothing rewritten
 
 
@@ -142,14 +142,14 @@ def test_cli_rejects_bad_budget(tmp_path: Path, capsys: pytest.CaptureFixture) -
 
 
 def test_failed_stage_is_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import servo_mj.reproduce as rp
+    import servobot.reproduce as rp
 
     def broken(*_a, **_k):
         raise ReproduceError("calibration failed (test)")
 
-    monkeypatch.setattr(rp, "_calibrate", broken)
+    monkeypatch.setattr(rp, "calibrate", broken)
     with pytest.raises(ReproduceError, match="calibration failed"):
-        reproduce(tmp_path, settings=TINY, workers=1, progress=False, log=lambda _m: None)
+        reproduce(tmp_path, settings=TINY, workers=1, log=lambda _m: None)
     text = (tmp_path / "REPORT.md").read_text()
     assert "| calibration |" in text and "failed: calibration failed (test)" in text
     assert "| navigation | — | not reached |" in text

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from evolve import evaluate, stages
+from evolve import starts as starts_mod
 from evolve.codec import read_chromosome
 from evolve.settings import GASettings, WorldSettings, navigation_ga_settings
 from evolve.table import load_table
@@ -70,8 +71,8 @@ def test_coverage_run_fitness_is_squares():
 
 def test_start_poses_lie_in_their_regions():
     rng = np.random.default_rng(1)
-    nav = stages.navigation_starts(rng, 2000, WORLD)
-    cov = stages.coverage_starts(rng, 2000, WORLD)
+    nav = starts_mod.navigation_starts(rng, 2000, WORLD)
+    cov = starts_mod.coverage_starts(rng, 2000, WORLD)
     lo, hi = WORLD.navigation_start_xy
     assert nav.shape == cov.shape == (2000, 3)
     assert (nav[:, :2] >= lo).all() and (nav[:, :2] <= hi).all()
@@ -88,7 +89,7 @@ def test_unique_evaluation_equals_evaluating_everyone():
     rng = np.random.default_rng(5)
     base = rng.integers(0, 2, (6, 8, 30), dtype=np.uint8)
     pop = base[[0, 1, 0, 2, 3, 3, 4, 5, 0]]  # repeated individuals, as in a converged population
-    starts = stages.navigation_starts(rng, 7, WORLD)
+    starts = starts_mod.navigation_starts(rng, 7, WORLD)
     stage = stages.navigation_stage(WORLD)
     fit, ev, first, inverse = stages.evaluate_sections(pop, starts, stage, TABLE, WORLD)
     assert len(first) == 6
@@ -104,11 +105,9 @@ def test_bad_settings_are_refused(tmp_path):
         dataclasses.replace(TINY, populations=0),
     ):
         with pytest.raises(stages.StageError):
-            stages.run_navigation(tmp_path, table=TABLE, ga=bad, progress=False)
+            stages.run_navigation(tmp_path, table=TABLE, ga=bad)
     with pytest.raises(stages.StageError, match="navigation section"):
-        stages.run_coverage(
-            tmp_path, navigation=np.zeros((7, 30)), table=TABLE, ga=TINY, progress=False
-        )
+        stages.run_coverage(tmp_path, navigation=np.zeros((7, 30)), table=TABLE, ga=TINY)
 
 
 # --------------------------------------------------------------------------- determinism, resume
@@ -116,11 +115,9 @@ def test_bad_settings_are_refused(tmp_path):
 
 def test_same_seed_same_populations_other_seed_differs(tmp_path):
     a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
-    stages.run_navigation(a, table=TABLE, ga=TINY, progress=False)
-    stages.run_navigation(b, table=TABLE, ga=TINY, progress=False)
-    stages.run_navigation(
-        c, table=TABLE, ga=dataclasses.replace(TINY, seed=4, populations=1), progress=False
-    )
+    stages.run_navigation(a, table=TABLE, ga=TINY)
+    stages.run_navigation(b, table=TABLE, ga=TINY)
+    stages.run_navigation(c, table=TABLE, ga=dataclasses.replace(TINY, seed=4, populations=1))
     fa, fb = _files(a), _files(b)
     assert "navigation/populations/pop1_gen0024.npz" in fa
     assert fa == fb
@@ -132,28 +129,28 @@ def test_same_seed_same_populations_other_seed_differs(tmp_path):
 
 def test_population_does_not_depend_on_how_many_run(tmp_path):
     one = dataclasses.replace(TINY, populations=1)
-    stages.run_navigation(tmp_path / "one", table=TABLE, ga=one, progress=False)
-    stages.run_navigation(tmp_path / "two", table=TABLE, ga=TINY, progress=False)
+    stages.run_navigation(tmp_path / "one", table=TABLE, ga=one)
+    stages.run_navigation(tmp_path / "two", table=TABLE, ga=TINY)
     name = "navigation/populations/pop0_gen0024.npz"
     assert _files(tmp_path / "one")[name] == _files(tmp_path / "two")[name]
 
 
 def test_resume_after_interruption_equals_uninterrupted_run(tmp_path):
     ref, cut = tmp_path / "ref", tmp_path / "cut"
-    stages.run_navigation(ref, table=TABLE, ga=TINY, progress=False)
+    stages.run_navigation(ref, table=TABLE, ga=TINY)
 
     def kill_at(info):
         if info["population"] == 1 and info["generation"] == 20:
             raise Interrupt
 
     with pytest.raises(Interrupt):
-        stages.run_navigation(cut, table=TABLE, ga=TINY, progress=False, on_generation=kill_at)
+        stages.run_navigation(cut, table=TABLE, ga=TINY, on_generation=kill_at)
     assert (cut / "navigation/checkpoints/pop0_final.npz").exists()
     assert (cut / "navigation/checkpoints/pop1.npz").exists()  # written at generation 16
     assert not (cut / "navigation/best.txt").exists()
     seen = []
     summary = stages.run_navigation(
-        cut, table=TABLE, ga=TINY, progress=False, resume=True, on_generation=seen.append
+        cut, table=TABLE, ga=TINY, resume=True, on_generation=seen.append
     )
     # population 0 is not re-run; population 1 restarts at its checkpoint (generation 16)
     assert [(i["population"], i["generation"]) for i in seen] == [(1, g) for g in range(16, 25)]
@@ -167,24 +164,23 @@ def test_corrupt_checkpoint_is_a_clear_error(tmp_path):
             raise Interrupt
 
     with pytest.raises(Interrupt):
-        stages.run_navigation(tmp_path, table=TABLE, ga=TINY, progress=False, on_generation=kill_at)
+        stages.run_navigation(tmp_path, table=TABLE, ga=TINY, on_generation=kill_at)
     ckpt = tmp_path / "navigation/checkpoints/pop0.npz"
     good = ckpt.read_bytes()
     ckpt.write_bytes(good[: len(good) // 2])  # truncated, as by a full disk
     with pytest.raises(stages.StageError, match=r"pop0\.npz: corrupt checkpoint"):
-        stages.run_navigation(tmp_path, table=TABLE, ga=TINY, progress=False, resume=True)
+        stages.run_navigation(tmp_path, table=TABLE, ga=TINY, resume=True)
     ckpt.write_bytes(good)
     with pytest.raises(stages.StageError, match="different settings"):
         stages.run_navigation(
             tmp_path,
             table=TABLE,
             ga=dataclasses.replace(TINY, seed=9),
-            progress=False,
             resume=True,
         )
     np.savez(ckpt, population=np.zeros(3))  # a valid npz that lacks the resume state
     with pytest.raises(stages.StageError, match="missing"):
-        stages.run_navigation(tmp_path, table=TABLE, ga=TINY, progress=False, resume=True)
+        stages.run_navigation(tmp_path, table=TABLE, ga=TINY, resume=True)
 
 
 # --------------------------------------------------------------------------- learning
@@ -195,7 +191,7 @@ def learned_navigation(tmp_path_factory):
     out = tmp_path_factory.mktemp("learn")
     # 48 × 64: seeds 0–4 all dock from ≥ 49 % of the test starts (generation 0's best: ≤ 24 %)
     ga = navigation_ga_settings(populations=1, population_size=48, generations=64, seed=1)
-    summary = stages.run_navigation(out, table=TABLE, ga=ga, progress=False)
+    summary = stages.run_navigation(out, table=TABLE, ga=ga)
     return out, ga, summary
 
 
@@ -205,7 +201,7 @@ def test_short_navigation_evolution_learns_to_dock(learned_navigation):
     # generation 0's best, run from the same fresh test starts as the final best
     gen0 = np.load(folder / "populations/pop0_gen0000.npz")["best"]
     test_seq, _ = stages.stage_seeds(ga.seed, "navigation", ga.populations)
-    starts = stages.navigation_starts(
+    starts = starts_mod.navigation_starts(
         np.random.Generator(np.random.PCG64(test_seq)), ga.test_starts, WORLD
     )
     ev = evaluate(gen0[None], starts, table=TABLE.values, mode="navigation")
@@ -226,7 +222,7 @@ def test_short_coverage_evolution_learns_to_cover(learned_navigation, tmp_path):
     # 32 × 48: over seeds 0–4 the test fitness rose by 6–17 points to ≥ 22 % and the
     # population's mean training fitness by ≥ 2.2×
     ga = GASettings(populations=1, population_size=32, generations=48, test_starts=30, seed=2)
-    summary = stages.run_coverage(tmp_path, navigation=nav, table=TABLE, ga=ga, progress=False)
+    summary = stages.run_coverage(tmp_path, navigation=nav, table=TABLE, ga=ga)
     assert summary["generations"] == [0, 1, 32, 48]
     first, last = summary["figure9_inner_percent"][0][0], summary["final_inner_percent"][0]
     assert last >= first + 5.0  # percentage points of the 64 inner squares

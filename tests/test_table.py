@@ -5,7 +5,6 @@ import json
 import numpy as np
 import pytest
 
-from evolve.io import atomic_write_json
 from evolve.table import (
     PAPER_TABLE,
     GaitTableError,
@@ -14,6 +13,7 @@ from evolve.table import (
     table_to_json,
     validate_table,
 )
+from infra.io import atomic_write_json
 
 
 def test_paper_table_matches_figure4_spot_values():
@@ -79,7 +79,7 @@ def test_wrong_shape_and_bad_json(tmp_path):
 
 
 def test_atomic_write_keeps_old_file_when_writer_fails(tmp_path):
-    from evolve.io import atomic_write
+    from infra.io import atomic_write
 
     path = tmp_path / "out.txt"
     path.write_text("old")

@@ -10,10 +10,13 @@ import numpy as np
 import pytest
 
 from evolve.codec import parse_chromosome
+from evolve.settings import WorldSettings
+from evolve.starts import coverage_starts
 from evolve.table import PAPER_TABLE, load_table, table_to_json
-from servo_mj import physics_world, validate_cli
-from servo_mj.pool import Failed, Ok, ProcessExecutor, SerialExecutor, run_all
-from servo_mj.validate import ValidationError, validate
+from infra.executors import Failed, Ok, ProcessExecutor, SerialExecutor, run_all
+from servo_mj.world import physics_world
+from servobot.cli import validate as validate_cli
+from servobot.validate import ValidationError, validate
 
 GENE_8 = "01 0100000 0100000 0100000 0100000\n"
 BITS = parse_chromosome(GENE_8 * 16)
@@ -125,7 +128,7 @@ def test_cli_smoke(chromosome, tmp_path, capsys):
     )  # fmt: skip
     assert rc == 0
     doc = json.loads((out / "report.json").read_text())
-    want = validate_cli.draw_starts(2, np.random.default_rng(3), validate_cli.WorldSettings())
+    want = coverage_starts(np.random.default_rng(3), 2, WorldSettings())
     assert np.allclose([[r["start"][k] for k in "xyh"] for r in doc["runs"]], want)
     printed = capsys.readouterr().out
     assert "| # | start" in printed and "physics:" in printed
@@ -180,7 +183,7 @@ def test_cli_rejects_unparsable_and_8_gene_chromosomes(tmp_path, capsys):
 
 
 def test_cli_rejects_a_table_from_another_robot_model(chromosome, tmp_path, capsys):
-    from servo_mj.model import model_sha256
+    from servo_mj.robot.model import model_sha256
 
     other = tmp_path / "other.json"
     doc = table_to_json(PAPER_TABLE, provenance={"model_sha256": "0" * 64})
@@ -213,7 +216,7 @@ def test_pool_confines_raises_and_crashes_to_their_items():
 
 
 def test_servo_noise_is_seeded_per_run():
-    from servo_mj.settings import PhysicsSettings
+    from servo_mj.robot.settings import PhysicsSettings
 
     noisy = PhysicsSettings(servo_noise_rad=0.03)
 

@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from evolve.io import read_json
-from servo_mj.constants import LEGS, TRIPOD_A
+from infra.io import read_json
+from servo_mj.robot.constants import LEGS, TRIPOD_A
 
 N_GAITS = 16
 PARAMS_JSON = Path(__file__).resolve().parent / "data" / "gait_params.json"

@@ -7,7 +7,7 @@ import hashlib
 import mujoco
 import numpy as np
 
-from servo_mj import constants as C
+from servo_mj.robot import constants as C
 
 
 def load_robot(scene: bool = True) -> tuple[mujoco.MjModel, mujoco.MjData]:
@@ -54,3 +54,11 @@ def heading_deg_from_xmat(xmat: np.ndarray) -> float:
     """SPEC heading (0 = north/+y, clockwise) of a body whose +x axis is its forward axis."""
     fx, fy = float(xmat[0]), float(xmat[3])
     return float(np.degrees(np.arctan2(fx, fy)) % 360.0)
+
+
+def thrust_limit_rad(model: mujoco.MjModel, prefix: str = "") -> float:
+    """Smallest |ctrlrange| bound of the six thrust servos, rad: how far a thrust sweep may
+    reach (the MJCF's ``thrust`` default class is its one home)."""
+    ids = [name_id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, C.actuator_name(leg, "thrust", prefix))
+           for leg in C.LEGS]  # fmt: skip
+    return float(np.abs(model.actuator_ctrlrange[ids]).min())

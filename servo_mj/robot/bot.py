@@ -17,10 +17,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from servo_mj import constants as C
-from servo_mj.gaits import GaitLibrary, check_gait
-from servo_mj.model import free_joint_of, heading_deg_from_xmat, name_id
-from servo_mj.settings import PhysicsSettings
+from servo_mj.robot import constants as C
+from servo_mj.robot.gaits import GaitLibrary, check_gait
+from servo_mj.robot.model import free_joint_of, heading_deg_from_xmat, name_id
+from servo_mj.robot.settings import PhysicsSettings
 
 Pose = tuple[float, float, float]
 CM_PER_M = C.CM_PER_M

@@ -48,7 +48,7 @@ import rerun.blueprint as rrb
 from evolve import geometry
 from evolve.codec import LIGHT_LEFT, LIGHT_RIGHT, LOW_POWER, OBJECT_LEFT, OBJECT_RIGHT
 from evolve.settings import WorldSettings
-from servo_mj.constants import CM_PER_M
+from servo_mj.robot.constants import CM_PER_M
 
 SENSORS: tuple[tuple[str, int], ...] = (
     ("object_right", OBJECT_RIGHT),
@@ -742,6 +742,38 @@ class Recording:
             if ok:
                 os.replace(self._tmp, self.path)
             self._tmp.unlink(missing_ok=True)
+
+
+def calibration_recorder(rec: Recording, settings: Any) -> dict[str, Any]:
+    """Keyword arguments of ``calibration.calibrate.calibrate`` that record its walks in
+    ``rec``: the calibration scene's model, ``on_frame`` (bodies and feet every servo frame)
+    and ``on_cycle`` (F, T, dH of each measured cycle). Gait g's walk is shifted to start at
+    g × (its duration + 1 s) on ``sim_time``, so the 16 walks follow one another."""
+    import mujoco
+
+    from servo_mj.robot import constants as C
+    from servo_mj.robot.gaits import GaitLibrary
+    from servo_mj.robot.model import load_robot
+    from servo_mj.robot.settings import PhysicsSettings
+
+    model, _ = load_robot(scene=True)
+    feet = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, n) for n in C.foot_sites()]
+    physics = PhysicsSettings()
+    cycle_s = len(GaitLibrary().frames(0)) * physics.frame_s
+    per_gait_s = physics.settle_s + (settings.settle_cycles + settings.cycles) * cycle_s + 1.0
+    rec.log_robot_model(model, prefix="")
+
+    def on_frame(g: int, d: Any) -> None:
+        t = g * per_gait_s + d.time
+        rec.log_robot_state(d, prefix="", t_s=t)
+        rec.log_feet(t, d.site_xpos[feet])
+
+    def on_cycle(g: int, res: Any, bot: Any) -> None:
+        f, t, dh = res.ftdh
+        k = res.cycle - settings.settle_cycles
+        rec.log_calibration_cycle(g, k, f, t, dh, g * per_gait_s + res.t_end_s)
+
+    return {"model": model, "on_frame": on_frame, "on_cycle": on_cycle}
 
 
 def _geom_archetype(model: Any, g: int) -> Any | None:

@@ -10,7 +10,7 @@ rangefinder rays never see it).
 The robot MJCF is attached through an attachment frame that carries the free joint: the
 robot's own free joint is removed and the torso's placement moved onto the frame, so that the
 frame's free-joint qpos means what the robot's did (keyframes stay valid). The object-sensor
-rangefinder fans (``servo_mj.sensors``) are added to the torso before attaching.
+rangefinder fans (``servo_mj.world.sensors``) are added to the torso before attaching.
 
 Physics options (timestep, integrator, friction cone, solver, ...) and the floor's contact
 parameters are copied from the calibration scene (``models/servobot/scene.xml``) after
@@ -28,8 +28,8 @@ import numpy as np
 from dm_control import mjcf
 
 from evolve.settings import WorldSettings
-from servo_mj import sensors as _sensors
-from servo_mj.sensors import CM_PER_M, ObjectSensorIndex
+from servo_mj.world import sensors as _sensors
+from servo_mj.world.sensors import CM_PER_M, ObjectSensorIndex
 
 
 @dataclass(frozen=True)
@@ -99,8 +99,8 @@ class RobotSpec:
 
 
 def default_robot() -> RobotSpec:
-    """The ServoBot of ``servo_mj.constants``."""
-    from servo_mj import constants as c
+    """The ServoBot of ``servo_mj.robot.constants``."""
+    from servo_mj.robot import constants as c
 
     # constants: "Robot body frame: +x forward, +y left, +z up".
     return RobotSpec(

@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from evolve.settings import WorldSettings
-from servo_mj.constants import CM_PER_M
+from servo_mj.robot.constants import CM_PER_M
 
 SIDES = ("left", "right")
 """Object-sensor sides, in the order the World protocol returns them."""

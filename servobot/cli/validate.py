@@ -15,9 +15,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from evolve.codec import ChromosomeError, read_chromosome
 from evolve.settings import WorldSettings
-from evolve.table import GaitTable, GaitTableError, load_table
+from evolve.starts import coverage_starts
+from servo_mj.robot.settings import PhysicsSettings
+from servobot.validate import (
+    ValidationError,
+    check_chromosome,
+    check_start,
+    load_checked_table,
+    run_rows,
+    summary_lines,
+    validate,
+)
 
 DEFAULT_STARTS = 20
 """Start poses drawn when no ``--start`` is given."""
@@ -27,53 +39,6 @@ DEFAULT_OUT = Path("runs/validate")
 
 class InputError(ValueError):
     """Bad command-line input; the message names the problem (exit status 2)."""
-
-
-def draw_starts(n: int, rng: np.random.Generator, world: WorldSettings) -> np.ndarray:
-    """(n, 3) coverage start poses (SPEC §5): x, y uniform in the coverage region, heading
-    uniform in [0, 360); one ``rng.random((n, 3))`` draw, as ``evolve.stages.coverage_starts``."""
-    (x0, x1), (y0, y1) = world.coverage_start_x, world.coverage_start_y
-    u = rng.random((n, 3))
-    return np.column_stack([x0 + (x1 - x0) * u[:, 0], y0 + (y1 - y0) * u[:, 1], 360.0 * u[:, 2]])
-
-
-def _find_sha(meta: Any) -> str | None:
-    """The model sha256 recorded anywhere in a calibration file's metadata, if any."""
-    if isinstance(meta, dict):
-        for k, v in meta.items():
-            if "sha256" in str(k).lower() and isinstance(v, str):
-                return v
-        for v in meta.values():
-            found = _find_sha(v)
-            if found:
-                return found
-    return None
-
-
-def load_checked_table(spec: str) -> tuple[GaitTable, str | None]:
-    """Load ``paper`` or a calibration file; refuse a file made for another robot model.
-
-    Returns the table and a warning (or None). Raises ``InputError`` naming both model hashes
-    when the file's model sha256 differs from the current ServoBot model's.
-    """
-    try:
-        table = load_table(spec)
-    except GaitTableError as exc:
-        raise InputError(f"gait table: {exc}") from exc
-    if spec == "paper":
-        return table, None
-    from servo_mj.model import model_sha256
-
-    current = model_sha256()
-    recorded = _find_sha(table.meta)
-    if recorded is None:
-        return table, f"warning: {spec} records no model sha256; cannot check it fits this robot"
-    if recorded != current:
-        raise InputError(
-            f"gait table {spec} was calibrated on another robot model: its model sha256 is "
-            f"{recorded}, the current model's (models/servobot) is {current}"
-        )
-    return table, None
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -139,9 +104,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def prepare(args: argparse.Namespace, world: WorldSettings) -> tuple[np.ndarray, np.ndarray]:
     """Read the chromosome and build the start poses; ``InputError`` on bad input."""
-    from evolve.codec import ChromosomeError, read_chromosome
-    from servo_mj.validate import ValidationError, check_chromosome, check_start
-
     try:
         bits = check_chromosome(read_chromosome(args.chromosome))
     except (ChromosomeError, ValidationError) as exc:
@@ -151,7 +113,7 @@ def prepare(args: argparse.Namespace, world: WorldSettings) -> tuple[np.ndarray,
     else:
         if args.starts < 1:
             raise InputError(f"--starts must be at least 1, got {args.starts}")
-        starts = draw_starts(args.starts, np.random.default_rng(args.seed), world)
+        starts = coverage_starts(np.random.default_rng(args.seed), args.starts, world)
     for k, s in enumerate(starts):
         try:
             check_start(s, world, name=f"start {k} ({s[0]:g} {s[1]:g} {s[2]:g})")
@@ -172,21 +134,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         bits, starts = prepare(args, world)
         table, warning = load_checked_table(args.table)
-    except InputError as exc:
+    except (InputError, ValidationError) as exc:
         print(f"servobot validate: {exc}", file=sys.stderr)
         return 2
     if warning:
         print(warning, file=sys.stderr)
 
-    from tqdm import tqdm
-
-    from servo_mj.validate import run_rows, summary_lines, validate
-
-    physics = None
-    if args.noise is not None:
-        from servo_mj.settings import PhysicsSettings
-
-        physics = PhysicsSettings(servo_noise_rad=args.noise)
+    physics = None if args.noise is None else PhysicsSettings(servo_noise_rad=args.noise)
     bar = tqdm(total=len(starts), desc="validate", unit="start", disable=args.no_progress)
 
     def on_run(rec: dict[str, Any]) -> None:

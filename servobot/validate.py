@@ -3,7 +3,7 @@
 ``validate(bits, starts, ...)`` runs the 16-gene chromosome with the reference interpreter
 (``evolve.interpreter.run``, coverage mode, SPEC §5: 4.0 V, gene 0, 600 steps) from every
 start pose twice — in the table world (``evolve.world.TableWorld``) and in the MuJoCo colony
-(``servo_mj.physics_world.PhysicsWorld``) — and returns a report::
+(``servo_mj.world.physics_world.PhysicsWorld``) — and returns a report::
 
     {"runs": [{"index", "start": {"x", "y", "h"},
                "table":   {"squares", "inner_squares", "docks", "steps", "end": {"code", "name"},
@@ -16,12 +16,12 @@ start pose twice — in the table world (``evolve.world.TableWorld``) and in the
 The summary gives, per world, mean squares and inner squares, inner % of the 64 inner squares,
 docks and docking success (share of runs with at least one dock), end reasons, and the
 table-vs-physics gap in percentage points over the runs whose physics finished. Runs are
-independent and go to an executor (``servo_mj.pool``); a run whose physics blows up keeps
+independent and go to an executor (``infra.executors``); a run whose physics blows up keeps
 its table record and an ``error``, and the other runs are unaffected.
 
 With ``out_dir``: ``report.json``, ``report.md`` and ``tracks.npz`` (per run ``table_{k}`` and
 ``physics_{k}``: (steps + 1, 3) poses x, y cm, heading deg) are written atomically; with
-``rrd=True`` each run also writes ``run{k}.rrd`` (``servo_mj.recording``).
+``rrd=True`` each run also writes ``run{k}.rrd`` (``servobot.recording``).
 """
 
 from __future__ import annotations
@@ -39,12 +39,13 @@ import numpy as np
 from evolve import geometry
 from evolve.codec import FULL_GENES, check_bits, format_chromosome
 from evolve.interpreter import END_DOCKED, END_NAMES, run
-from evolve.io import atomic_write, atomic_write_json, atomic_write_text
 from evolve.settings import WorldSettings
-from evolve.table import validate_table
+from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
-from servo_mj.arena import ArenaSettings, overlaps_station
-from servo_mj.pool import Executor, Failed, make_executor
+from infra.executors import Executor, Failed, make_executor
+from infra.io import atomic_write, atomic_write_json, atomic_write_text
+from servo_mj.robot.model import model_sha256
+from servo_mj.world.arena import ArenaSettings, overlaps_station
 
 MODE = "coverage"
 """Validation runs the full controller in coverage mode (SPEC §5)."""
@@ -69,11 +70,6 @@ class StartJob:
     rrd_path: str | None
     seed: int = 0
     """Seed of this run's servo-noise generator: ``default_rng((seed, index))``."""
-
-
-def inner_square_count(world: WorldSettings) -> int:
-    """Number of inner squares (64 on the 10 × 10 grid)."""
-    return (world.grid_n - 2) ** 2
 
 
 def check_start(
@@ -125,6 +121,43 @@ def check_chromosome(bits: Any) -> np.ndarray:
     return arr
 
 
+def _find_sha(meta: Any) -> str | None:
+    """The model sha256 recorded anywhere in a calibration file's metadata, if any."""
+    if isinstance(meta, dict):
+        for k, v in meta.items():
+            if "sha256" in str(k).lower() and isinstance(v, str):
+                return v
+        for v in meta.values():
+            found = _find_sha(v)
+            if found:
+                return found
+    return None
+
+
+def load_checked_table(spec: str) -> tuple[GaitTable, str | None]:
+    """Load ``paper`` or a calibration file; refuse a file made for another robot model.
+
+    Returns the table and a warning (or None). Raises ``ValidationError`` naming both model
+    hashes when the file's model sha256 differs from the current ServoBot model's.
+    """
+    try:
+        table = load_table(spec)
+    except GaitTableError as exc:
+        raise ValidationError(f"gait table: {exc}") from exc
+    if spec == "paper":
+        return table, None
+    current = model_sha256()
+    recorded = _find_sha(table.meta)
+    if recorded is None:
+        return table, f"warning: {spec} records no model sha256; cannot check it fits this robot"
+    if recorded != current:
+        raise ValidationError(
+            f"gait table {spec} was calibrated on another robot model: its model sha256 is "
+            f"{recorded}, the current model's (models/servobot) is {current}"
+        )
+    return table, None
+
+
 def _record(res: Any, wall_s: float) -> dict[str, Any]:
     return {
         "squares": int(res.squares),
@@ -139,7 +172,7 @@ def _record(res: Any, wall_s: float) -> dict[str, Any]:
 
 def run_start(job: StartJob) -> dict[str, Any]:
     """Run one start pose in both worlds (worker function; catches physics failures)."""
-    from servo_mj.physics_world import PhysicsWorld
+    from servo_mj.world.physics_world import PhysicsWorld
 
     x, y, h = job.start
     out: dict[str, Any] = {
@@ -151,7 +184,7 @@ def run_start(job: StartJob) -> dict[str, Any]:
     }
     rec = None
     if job.rrd_path is not None:
-        from servo_mj.recording import Recording
+        from servobot.recording import Recording
 
         rec = Recording(job.rrd_path, app_id="servobot-validate")
         rec.log_arena(job.world)
@@ -229,7 +262,7 @@ def _world_summary(recs: list[dict[str, Any]], n_inner: int) -> dict[str, Any]:
 
 def summarise(runs: list[dict[str, Any]], world: WorldSettings, wall_s: float) -> dict[str, Any]:
     """Summary of per-run records: per world, and the gap over runs whose physics finished."""
-    n_inner = inner_square_count(world)
+    n_inner = world.inner_square_count
     table = [r["table"] for r in runs if r.get("table")]
     paired = [r for r in runs if r.get("table") and r.get("physics")]
     t_pair = _world_summary([r["table"] for r in paired], n_inner)
@@ -476,7 +509,7 @@ __all__ = [
     "ValidationError",
     "check_chromosome",
     "check_start",
-    "inner_square_count",
+    "load_checked_table",
     "report_markdown",
     "run_start",
     "summarise",

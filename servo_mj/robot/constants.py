@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from pathlib import Path
 
-MODEL_DIR = Path(__file__).resolve().parents[1] / "models" / "servobot"
+MODEL_DIR = Path(__file__).resolve().parents[2] / "models" / "servobot"
 """Folder of the robot's MJCF files."""
 ROBOT_XML = MODEL_DIR / "servobot.xml"
 """The robot alone (attachable with ``dm_control.mjcf``)."""

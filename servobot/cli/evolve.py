@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from evolve.settings import GASettings, navigation_ga_settings
+from servobot.progress import GenerationBars
 
 DEFAULT_OUT = Path("runs/evolve")
 """Default run folder of ``--out``."""
@@ -152,6 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     from evolve.codec import ChromosomeError
     from evolve.table import GaitTableError, load_table
 
+    bars = GenerationBars(enabled=not args.no_progress)
     try:
         ga = ga_settings(args)
         table = load_table(args.table)
@@ -159,7 +161,7 @@ def main(argv: list[str] | None = None) -> int:
             if args.navigation is not None:
                 raise CliError("--navigation is an option of the coverage stage")
             summary = stages.run_navigation(
-                args.out, table=table, ga=ga, resume=args.resume, progress=not args.no_progress
+                args.out, table=table, ga=ga, resume=args.resume, on_generation=bars
             )
             _print_navigation(summary, args.out)
         else:
@@ -171,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
                 table=table,
                 ga=ga,
                 resume=args.resume,
-                progress=not args.no_progress,
+                on_generation=bars,
             )
             _print_coverage(summary, args.out)
     except (CliError, stages.StageError, GaitTableError, ChromosomeError) as exc:
@@ -184,6 +186,8 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERRUPTED
+    finally:
+        bars.close()
     return 0
 
 

@@ -1,7 +1,7 @@
-"""The ``servobot`` command: a thin dispatcher over the libraries' own CLIs.
+"""The ``servobot`` command: a dispatcher over one module per subcommand.
 
-Each subcommand lives beside the library it drives and exposes ``main(argv)``; modules are
-imported lazily so that ``servobot evolve`` never imports MuJoCo.
+Each subcommand module only parses arguments, calls its library function and prints; the
+modules are imported lazily so that ``servobot evolve`` never imports MuJoCo.
 """
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ import importlib
 import sys
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "calibrate": ("calibration.cli", "regenerate the gait table (Figure 4) from MuJoCo physics"),
-    "evolve": ("evolve.cli", "run the CGA: navigation or coverage stage"),
-    "trace": ("evolve.trace", "print (and record) a controller's run step by step"),
-    "validate": ("servo_mj.validate_cli", "run a chromosome in the table simulation and physics"),
-    "reproduce": ("servo_mj.reproduce", "the end-to-end reproduction into one run folder"),
+    "calibrate": ("servobot.cli.calibrate", "regenerate the gait table (Figure 4) from MuJoCo"),
+    "evolve": ("servobot.cli.evolve", "run the CGA: navigation or coverage stage"),
+    "trace": ("servobot.cli.trace", "print (and record) a controller's run step by step"),
+    "validate": ("servobot.cli.validate", "run a chromosome in the table simulation and physics"),
+    "reproduce": ("servobot.cli.reproduce", "the end-to-end reproduction into one run folder"),
 }
 
 
@@ -36,7 +36,3 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     module = importlib.import_module(COMMANDS[name][0])
     return int(module.main(rest) or 0)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

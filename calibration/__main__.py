@@ -1,7 +1,0 @@
-"""``python -m calibration``: same as ``servobot calibrate``."""
-
-import sys
-
-from calibration.cli import main
-
-sys.exit(main())

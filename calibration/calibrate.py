@@ -1,0 +1,161 @@
+"""``calibrate(out, settings)``: re-measure Figure 4 in MuJoCo, optionally fitting the gaits first.
+
+The library function under ``servobot calibrate`` and the pipeline's first stage. It writes
+``out/gait_table.json`` (``evolve.table.table_to_json`` plus provenance: model hash, MuJoCo
+version, settings, gait parameters), ``out/figure4.png`` and, with a fit,
+``out/gait_params.json`` (and ``params_out``, e.g. the shipped file). Every file is written
+atomically once all physics has finished, so a failed run loses nothing already written.
+
+Recording is a consumer of the callbacks ``on_frame(gait, data)`` and
+``on_cycle(gait, result, bot)``; with either, the gaits run one after another in this process.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from calibration.fit import FitSettings, fit_library
+from calibration.measure import (
+    DEFAULTS,
+    CalibrationSettings,
+    CycleCallback,
+    FrameCallback,
+    measure_all,
+    summarise,
+)
+from calibration.report import save_figure, within_tolerance
+from evolve.table import table_to_json
+from infra.io import atomic_write_json
+from servo_mj.robot.gaits import N_GAITS, GaitLibrary
+from servo_mj.robot.model import model_sha256
+from servo_mj.robot.settings import PhysicsSettings
+
+TABLE_FILE = "gait_table.json"
+FIGURE_FILE = "figure4.png"
+PARAMS_FILE = "gait_params.json"
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """What a calibration measured and wrote."""
+
+    values: np.ndarray
+    """(16, 3) mean (F cm, T cm, dH deg) per gait."""
+    std: np.ndarray
+    """(16, 3) per-cycle standard deviation."""
+    table_path: Path
+    figure_path: Path
+    params_path: Path | None
+    """The fitted gait parameters (``out/gait_params.json``), None without a fit."""
+    library: GaitLibrary
+    """The gait parameters the table was measured with."""
+    wall_s: float
+
+
+def fitted_library(
+    library: GaitLibrary,
+    fit: FitSettings,
+    *,
+    workers: int = 1,
+    log: Callable[[str], None] | None = None,
+) -> GaitLibrary:
+    """Fit the 15 walking gaits to Figure 4 and record the fit's provenance in ``meta``."""
+    fitted, report = fit_library(library, fit, workers=workers, log=log)
+    return GaitLibrary(
+        fitted.rows,
+        fitted.stride_rad,
+        fitted.lift_rad,
+        {
+            "fitted": True,
+            "fit_settings": fit.__dict__ | {"step": list(fit.step)},
+            "fit_report": {str(g): r for g, r in report.items()},
+            "model_sha256": model_sha256(),
+            "mujoco_version": mujoco.__version__,
+        },
+    )
+
+
+def calibrate(
+    out: str | Path,
+    settings: CalibrationSettings = DEFAULTS,
+    *,
+    library: GaitLibrary | None = None,
+    fit: FitSettings | None = None,
+    params_out: str | Path | None = None,
+    workers: int = 1,
+    model: mujoco.MjModel | None = None,
+    on_frame: FrameCallback | None = None,
+    on_cycle: CycleCallback | None = None,
+    log: Callable[[str], None] | None = None,
+    command: str = "",
+) -> CalibrationResult:
+    """Measure the 16 gaits (after fitting them when ``fit`` is given) and write the table.
+
+    ``library`` defaults to the shipped gait parameters; ``model`` to the calibration scene.
+    ``params_out``: a second place for the fitted parameters (with ``fit`` only). Raises
+    ``servo_mj.robot.bot.PhysicsError`` if the simulation blows up (nothing is written then).
+    """
+    out = Path(out)
+    t0 = time.perf_counter()
+    library = library if library is not None else GaitLibrary.load()
+    if fit is not None:
+        library = fitted_library(library, fit, workers=workers, log=log)
+    per_cycle = measure_all(
+        range(N_GAITS),
+        workers=workers,
+        model=model,
+        on_frame=on_frame,
+        on_cycle=on_cycle,
+        library=library,
+        **settings.measure_kwargs(),
+    )
+    values, std = summarise(per_cycle)
+    wall_s = time.perf_counter() - t0
+    doc = table_document(values, std, settings, library, wall_s=wall_s, command=command)
+    params_path = None
+    if fit is not None:
+        params_path = atomic_write_json(out / PARAMS_FILE, library.to_dict())
+        if params_out is not None:
+            atomic_write_json(params_out, library.to_dict())
+    table_path = atomic_write_json(out / TABLE_FILE, doc)
+    figure_path = save_figure(out / FIGURE_FILE, values, std)
+    return CalibrationResult(values, std, table_path, figure_path, params_path, library, wall_s)
+
+
+def table_document(
+    values: np.ndarray,
+    std: np.ndarray,
+    settings: CalibrationSettings,
+    library: GaitLibrary,
+    *,
+    wall_s: float,
+    command: str = "",
+) -> dict[str, Any]:
+    """The ``gait_table.json`` document: the table and how it was measured."""
+    return table_to_json(
+        values,
+        std,
+        cycles=settings.cycles,
+        source="MuJoCo calibration (servobot calibrate)",
+        model_sha256=model_sha256(),
+        mujoco_version=mujoco.__version__,
+        calibration=settings.to_dict(),
+        seed=settings.seed,
+        noise_rad=settings.noise_rad,
+        settle_cycles=settings.settle_cycles,
+        physics=PhysicsSettings().to_dict(),
+        gait_params=library.to_dict(),
+        within_tolerance=int(within_tolerance(values).sum()),
+        wall_time_s=round(wall_s, 3),
+        command=command,
+    )
+
+
+__all__ = ["CalibrationResult", "calibrate", "fitted_library", "table_document"]

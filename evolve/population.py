@@ -1,0 +1,336 @@
+"""One population of the CGA, generation by generation, checkpointed and resumable.
+
+A ``Stage`` says what is evolved (mode, steps, start poses, run fitness, a fixed navigation
+section to append); a ``PopulationRun`` is one population's loop, exposed step by step so
+that a caller can look at (or bias) the fitness between evaluating a generation and
+breeding the next one — anytime learning drives several populations in lockstep this way.
+``evolve_population`` is the plain loop::
+
+    rng = Generator(PCG64(population's own SeedSequence))
+    pop = random sections                                  # generation 0
+    for g in 0..G:
+        [checkpoint (g, pop, rng state) every CHECKPOINT_EVERY generations]
+        starts = 10 start poses drawn from rng             # shared by the population
+        fitness = mean over starts of the run fitness      # unique genomes evaluated once
+        [save population + best if g is a save generation]
+        if g < G: pop = next_generation(pop, fitness, rng)
+
+Progress reaches the outside through ``on_generation(record)``, never prints.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evolve import ga as gaops
+from evolve.checkpoint import check_settings, read_npz, write_npz
+from evolve.codec import GENE_BITS, SECTION_GENES
+from evolve.interpreter import END_DOCKED
+from evolve.settings import GASettings, WorldSettings
+from evolve.table import GaitTable
+from infra.io import atomic_write_text
+
+CHECKPOINT_EVERY = 16
+"""Generations between checkpoints of a population (operational, not a SPEC value)."""
+STAGE_IDS = {"navigation": 0, "coverage": 1}
+"""Second entropy word of each stage's SeedSequence, so the stages draw different numbers."""
+HISTORY_COLUMNS = ("generation", "best_fitness", "mean_fitness", "docked_fraction", "unique")
+"""Columns of ``history_pop{k}.csv``: per generation, on that generation's 10 starts;
+``docked_fraction`` = fraction of all runs that docked at least once; ``unique`` = distinct
+genomes evaluated."""
+
+OnGeneration = Callable[[dict[str, Any]], None]
+"""``on_generation(record)``: ``stage``, ``population``, ``generations`` (the final one), then
+the ``HISTORY_COLUMNS`` of the generation just evaluated."""
+
+
+class StageError(RuntimeError):
+    """A stage cannot run or resume (bad settings, corrupt or mismatched checkpoint)."""
+
+
+@dataclass(frozen=True)
+class Stage:
+    """What differs between the learning stages."""
+
+    name: str
+    mode: str
+    max_steps: int
+    starts: Callable[[np.random.Generator, int, WorldSettings], np.ndarray]
+    run_fitness: Callable[[Any, np.ndarray, WorldSettings], np.ndarray]
+    navigation: np.ndarray | None = None
+    """Fixed navigation section (8, 30) appended to every coverage section."""
+
+    def genomes(self, sections: np.ndarray) -> np.ndarray:
+        """Chromosomes the kernel runs: the sections, or sections + navigation (P, 16, 30)."""
+        if self.navigation is None:
+            return np.ascontiguousarray(sections)
+        nav = np.broadcast_to(self.navigation, (sections.shape[0],) + self.navigation.shape)
+        return np.ascontiguousarray(np.concatenate([sections, nav], axis=1))
+
+
+def evaluate_sections(
+    sections: np.ndarray,
+    starts: np.ndarray,
+    stage: Stage,
+    table: GaitTable,
+    world: WorldSettings,
+) -> tuple[np.ndarray, Any, np.ndarray, np.ndarray]:
+    """Run every distinct section once from every start.
+
+    Returns ``(run_fitness (P, S), evaluation of the unique genomes, unique index (U,),
+    inverse (P,))`` where row p of the population's results is row ``inverse[p]`` of the
+    unique ones. Converged populations repeat individuals; the results are identical to
+    evaluating all P, with less work.
+    """
+    from evolve.evaluation import evaluate  # numba: loaded on first use
+
+    p = sections.shape[0]
+    packed = np.packbits(sections.reshape(p, -1), axis=1)
+    _, first, inverse = np.unique(packed, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    ev = evaluate(
+        stage.genomes(sections[first]),
+        np.ascontiguousarray(starts, dtype=np.float64),
+        table=table.values,
+        mode=stage.mode,
+        start_power=world.start_power_v,
+        max_steps=stage.max_steps,
+        settings=world,
+    )
+    run_fit = stage.run_fitness(ev, starts, world)
+    return run_fit[inverse], ev, first, inverse
+
+
+def stage_seeds(seed: int, stage: str, populations: int) -> tuple[np.random.SeedSequence, list]:
+    """(test-start seed, [population seeds]) of a stage: ``SeedSequence([seed, stage id])
+    .spawn(populations + 1)``; child 0 draws the shared test starts, child 1 + k drives
+    population k, so a population's numbers do not depend on how many populations run."""
+    children = np.random.SeedSequence([int(seed), STAGE_IDS[stage]]).spawn(populations + 1)
+    return children[0], children[1:]
+
+
+def save_generations(ga: GASettings) -> tuple[int, ...]:
+    """The save generations that exist in this run, plus the final one."""
+    return tuple(sorted({g for g in ga.save_generations if g <= ga.generations} | {ga.generations}))
+
+
+@dataclass
+class PopulationResult:
+    """A finished population: its final best section and per-generation history."""
+
+    index: int
+    best: np.ndarray
+    history: np.ndarray
+    """(G + 1, len(HISTORY_COLUMNS))."""
+
+
+@dataclass(frozen=True)
+class Generation:
+    """One evaluated generation: its starts and the (unbiased) fitness of every individual."""
+
+    starts: np.ndarray
+    """(S, 3) start poses drawn for this generation."""
+    fitness: np.ndarray
+    """(P,) mean run fitness over the starts."""
+    docked_fraction: float
+    """Fraction of all runs that docked at least once."""
+    unique: int
+    """Distinct genomes evaluated."""
+
+
+class PopulationRun:
+    """Population ``k`` of ``stage`` in ``folder``: resumes from its checkpoint, then
+    ``evaluate()`` / ``commit(fitness)`` one generation at a time until ``finished``.
+
+    Files: ``checkpoints/pop{k}.npz`` every ``CHECKPOINT_EVERY`` generations (population,
+    generation, rng state, history, settings), ``populations/pop{k}_gen{g:04d}.npz`` at the
+    save generations, and on completion ``checkpoints/pop{k}_final.npz`` and
+    ``history_pop{k}.csv``. A resumed run is bit-identical to an uninterrupted one.
+    """
+
+    def __init__(
+        self,
+        k: int,
+        stage: Stage,
+        folder: Path,
+        *,
+        seed_seq: np.random.SeedSequence,
+        table: GaitTable,
+        ga: GASettings,
+        world: WorldSettings,
+        settings_text: str,
+        resume: bool,
+    ) -> None:
+        self.k, self.stage, self.folder = k, stage, Path(folder)
+        self.table, self.ga, self.world, self.settings_text = table, ga, world, settings_text
+        self.ckpt = self.folder / "checkpoints" / f"pop{k}.npz"
+        self.final = self.folder / "checkpoints" / f"pop{k}_final.npz"
+        self.saves = set(save_generations(ga))
+        self.rng = np.random.Generator(np.random.PCG64(seed_seq))
+        self.generation = 0
+        self.history: list[tuple] = []
+        self.result: PopulationResult | None = None
+        self._pending: Generation | None = None
+        if resume and self.final.exists():
+            self._load_final()
+        elif resume and self.ckpt.exists():
+            self._load_checkpoint()
+        else:
+            self.pop = gaops.random_sections(self.rng, ga.population_size, SECTION_GENES)
+
+    @property
+    def finished(self) -> bool:
+        """Whether the final generation has been committed (now or in an earlier run)."""
+        return self.result is not None
+
+    def _load_final(self) -> None:
+        data = read_npz(self.final, "final population file", ("best", "history", "settings"),
+                        error=StageError)  # fmt: skip
+        check_settings(data["settings"], self.settings_text, self.final, error=StageError)
+        self.result = PopulationResult(self.k, data["best"].astype(np.uint8), data["history"])
+
+    def _load_checkpoint(self) -> None:
+        keys = ("population", "generation", "rng_state", "history", "settings")
+        data = read_npz(self.ckpt, "checkpoint", keys, error=StageError)
+        check_settings(data["settings"], self.settings_text, self.ckpt, error=StageError)
+        try:
+            self.rng.bit_generator.state = json.loads(str(data["rng_state"]))
+        except (ValueError, TypeError, KeyError) as exc:
+            raise StageError(f"{self.ckpt}: corrupt checkpoint (rng state: {exc})") from exc
+        self.pop = data["population"].astype(np.uint8)
+        self.generation = int(data["generation"])
+        self.history = [tuple(row) for row in data["history"].tolist()]
+        shape = (self.ga.population_size, SECTION_GENES, GENE_BITS)
+        if self.pop.shape != shape or len(self.history) != self.generation:
+            raise StageError(
+                f"{self.ckpt}: corrupt checkpoint (population {self.pop.shape}, "
+                f"gen {self.generation})"
+            )
+
+    def _checkpoint(self) -> None:
+        write_npz(
+            self.ckpt,
+            population=self.pop,
+            generation=np.int64(self.generation),
+            rng_state=np.str_(json.dumps(self.rng.bit_generator.state)),
+            history=np.asarray(self.history, dtype=np.float64).reshape(-1, len(HISTORY_COLUMNS)),
+            settings=np.str_(self.settings_text),
+        )
+
+    def evaluate(self) -> Generation:
+        """Checkpoint if due, draw this generation's starts and evaluate the population."""
+        if self.finished:
+            raise StageError(f"population {self.k} has already finished")
+        if self.generation % CHECKPOINT_EVERY == 0:
+            self._checkpoint()
+        starts = self.stage.starts(self.rng, self.ga.starts_per_generation, self.world)
+        run_fit, ev, first, inverse = evaluate_sections(
+            self.pop, starts, self.stage, self.table, self.world
+        )
+        docked = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == END_DOCKED)
+        self._pending = Generation(
+            starts, run_fit.mean(axis=1), float(docked[inverse].mean()), len(first)
+        )
+        return self._pending
+
+    def commit(self, fitness: np.ndarray | None = None) -> dict[str, Any]:
+        """Record the evaluated generation and breed the next one from ``fitness`` (default:
+        the evaluated fitness; anytime learning passes a biased one). Returns the
+        ``on_generation`` record. After the final generation the population is finished."""
+        gen_eval = self._pending
+        if gen_eval is None:
+            raise StageError("commit() needs an evaluate() first")
+        self._pending = None
+        fit = gen_eval.fitness if fitness is None else np.asarray(fitness, dtype=np.float64)
+        best = int(np.argmax(fit))
+        g = self.generation
+        row = (g, float(fit[best]), float(fit.mean()), gen_eval.docked_fraction, gen_eval.unique)
+        self.history.append(row)
+        if g in self.saves:
+            write_npz(
+                self.folder / "populations" / f"pop{self.k}_gen{g:04d}.npz",
+                population=self.pop,
+                fitness=fit,
+                best=self.pop[best],
+                starts=gen_eval.starts,
+            )
+        if g == self.ga.generations:
+            self._finish(best, fit)
+        else:
+            self.pop = gaops.next_generation(self.pop, fit, self.rng, self.ga)
+            self.generation += 1
+        record = {
+            "stage": self.stage.name,
+            "population": self.k,
+            "generations": self.ga.generations,
+        }
+        return record | dict(zip(HISTORY_COLUMNS, row, strict=True))
+
+    def _finish(self, best: int, fitness: np.ndarray) -> None:
+        hist = np.asarray(self.history, dtype=np.float64)
+        write_npz(
+            self.final,
+            best=self.pop[best],
+            population=self.pop,
+            fitness=fitness,
+            history=hist,
+            settings=np.str_(self.settings_text),
+        )
+        self.ckpt.unlink(missing_ok=True)
+        write_history(self.folder / f"history_pop{self.k}.csv", hist)
+        self.result = PopulationResult(self.k, self.pop[best].copy(), hist)
+
+
+def evolve_population(
+    k: int,
+    stage: Stage,
+    folder: Path,
+    *,
+    on_generation: OnGeneration | None = None,
+    **kwargs: Any,
+) -> PopulationResult:
+    """Evolve population ``k`` to its final generation (``PopulationRun`` keyword arguments);
+    ``on_generation(record)`` after every generation."""
+    run = PopulationRun(k, stage, folder, **kwargs)
+    while not run.finished:
+        run.evaluate()
+        record = run.commit()
+        if on_generation is not None:
+            on_generation(record)
+    assert run.result is not None
+    return run.result
+
+
+def write_history(path: Path, hist: np.ndarray) -> None:
+    """``history_pop{k}.csv`` of a finished population (``HISTORY_COLUMNS``)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(HISTORY_COLUMNS)
+    for row in hist:
+        w.writerow([int(row[0]), f"{row[1]:.6g}", f"{row[2]:.6g}", f"{row[3]:.6g}", int(row[4])])
+    atomic_write_text(path, buf.getvalue())
+
+
+__all__ = [
+    "CHECKPOINT_EVERY",
+    "HISTORY_COLUMNS",
+    "Generation",
+    "OnGeneration",
+    "PopulationResult",
+    "PopulationRun",
+    "Stage",
+    "StageError",
+    "evaluate_sections",
+    "evolve_population",
+    "save_generations",
+    "stage_seeds",
+    "write_history",
+]

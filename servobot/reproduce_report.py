@@ -1,0 +1,257 @@
+"""``REPORT.md`` of a reproduction: every figure and number the stages left in the run folder.
+
+Read-only over the run folder (``write_report`` reads the stages' files and writes one
+Markdown file), so it can be rewritten at any time, also after a failed stage.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import platform
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from calibration.report import TOLERANCE, within_tolerance
+from evolve.settings import WorldSettings
+from evolve.table import PAPER_TABLE, load_table
+from infra.io import atomic_write_text
+
+if TYPE_CHECKING:
+    from servobot.reproduce import ReproduceSettings
+
+STAGES = ("calibration", "navigation", "coverage", "validation")
+"""The stages of a reproduction, in order (the report is always rewritten)."""
+
+
+def _load_json(path: Path) -> dict[str, Any] | None:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+
+
+def _img(out: Path, path: Path, alt: str) -> list[str]:
+    if not path.exists():
+        return [f"*({alt}: {path.relative_to(out)} not written)*", ""]
+    return [f"![{alt}]({path.relative_to(out).as_posix()})", ""]
+
+
+def format_seconds(seconds: float) -> str:
+    """``12.3 s`` below two minutes, else ``4.5 min``."""
+    return f"{seconds:.1f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
+
+
+def _calibration_section(out: Path) -> list[str]:
+    lines = ["## 1. Calibration (Figure 4 rebuilt in MuJoCo)", ""]
+    lines += _img(out, out / "calibration" / "figure4.png", "Figure 4: measured vs paper")
+    try:
+        table = load_table(str(out / "calibration" / "gait_table.json"))
+    except Exception as exc:  # noqa: BLE001 - the report names what is missing
+        return [*lines, f"*(gait table unreadable: {exc})*", ""]
+    v, std = table.values, table.std
+    err = v - PAPER_TABLE
+    lines += [
+        "| gait | F | T | dH | paper F | paper T | paper dH | err F | err T | err dH |"
+        + (" std F | std T | std dH |" if std is not None else ""),
+        "|" + "---|" * (13 if std is not None else 10),
+    ]
+    for g in range(16):
+        row = (
+            f"| {g} | {v[g, 0]:.2f} | {v[g, 1]:.2f} | {v[g, 2]:.2f} | {PAPER_TABLE[g, 0]:g} | "
+            f"{PAPER_TABLE[g, 1]:g} | {PAPER_TABLE[g, 2]:g} | {err[g, 0]:+.2f} | "
+            f"{err[g, 1]:+.2f} | {err[g, 2]:+.2f} |"
+        )
+        if std is not None:
+            row += f" {std[g, 0]:.2f} | {std[g, 1]:.2f} | {std[g, 2]:.2f} |"
+        lines.append(row)
+    mx = np.abs(err).max(axis=0)
+    ok = within_tolerance(v)
+    lines += [
+        "",
+        f"Largest error: F {mx[0]:.2f} cm, T {mx[1]:.2f} cm, dH {mx[2]:.2f}°. Entries within "
+        f"{TOLERANCE[0]:g} cm (F, T) / {TOLERANCE[2]:g}° (dH) of the paper: {int(ok.sum())} of "
+        f"48; gaits with all three "
+        f"within: {int(ok.all(axis=1).sum())} of 16. Std = per-cycle standard deviation.",
+        "",
+    ]
+    return lines
+
+
+def _navigation_section(out: Path) -> list[str]:
+    summ = _load_json(out / "navigation" / "summary.json")
+    lines = ["## 2. Navigation (evolved on the calibrated table)", ""]
+    if summ is None:
+        return [*lines, "*(navigation/summary.json not written)*", ""]
+    steps = summ.get("mean_steps_to_dock")
+    lines += [
+        f"Chosen section: population {summ['chosen_population']} "
+        f"(`navigation/best.txt`); docking success on {summ['test_starts']} fresh starts: "
+        f"**{100 * summ['dock_success']:.0f}%**"
+        + (f", mean {steps:.1f} steps to dock." if steps is not None else "."),
+        "",
+        "| population | test fitness | dock rate | final training fitness |",
+        "|---|---|---|---|",
+    ]
+    for p in summ.get("populations", []):
+        lines.append(
+            f"| {p['population']} | {p['test_fitness']:.3f} | {100 * p['dock_rate']:.0f}% | "
+            f"{p['final_training_fitness']:.3f} |"
+        )
+    return [*lines, ""]
+
+
+def _coverage_section(out: Path) -> list[str]:
+    summ = _load_json(out / "coverage" / "summary.json")
+    lines = ["## 3. Area coverage (Figures 8, 9, 10)", ""]
+    lines += _img(out, out / "figure8.png", "Figure 8: arena, lit cones and dark area")
+    lines += _img(out, out / "coverage" / "figure9.png", "Figure 9: inner coverage by generation")
+    if summ is None:
+        return [*lines, "*(coverage/summary.json not written)*", ""]
+    gens = summ["generations"]
+    inner = np.asarray(summ["figure9_inner_percent"])
+    lines += [
+        f"Figure 9 at generation {gens[-1]} (best individual on {summ['test_starts']} fresh "
+        f"starts, % of the 64 inner squares): mean **{summ['final_mean_inner_percent']:.1f}%**"
+        "; per population " + ", ".join(f"{k}: {v:.1f}%" for k, v in enumerate(inner[:, -1])) + ".",
+        "",
+        "| generation | " + " | ".join(f"pop {k}" for k in range(len(inner))) + " | mean |",
+        "|---|" + "---|" * (len(inner) + 1),
+    ]
+    for j, g in enumerate(gens):
+        lines.append(
+            f"| {g} | "
+            + " | ".join(f"{inner[k, j]:.1f}" for k in range(len(inner)))
+            + f" | {inner[:, j].mean():.1f} |"
+        )
+    lines += ["", "Figure 10: each population's final best from (415, 252, 98°).", ""]
+    for f in summ.get("figure10", []):
+        k = f["population"]
+        desc = ", ".join(f"{a} {f[a]}" for a in ("squares", "docks", "end") if a in f)
+        lines += [f"Population {k}: {desc}", ""]
+        lines += _img(out, out / "coverage" / f"figure10_pop{k}.png", f"Figure 10 pop {k}")
+    return lines
+
+
+def _validation_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Path]]:
+    lines = [
+        "## 4. Reality gap: table simulation vs MuJoCo physics",
+        "",
+        f"Each finalist (`coverage/best_pop{{k}}.txt`) from the same {s.validate_starts} "
+        f"seeded coverage starts, {s.validate_max_steps} steps, in the table world and in "
+        "physics. Inner % = mean inner squares / 64; dock = share of runs with ≥ 1 dock; gap = "
+        "table − physics over the runs whose physics finished.",
+        "",
+        "| finalist | runs ok | table inner % | physics inner % | gap (pp) | table dock | "
+        "physics dock | dock gap (pp) | physics errors | wall |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    rrds: list[Path] = []
+    gaps, t_in, p_in, t_dk, p_dk = [], [], [], [], []
+    for k in range(s.coverage_populations):
+        sub = out / "validation" / f"pop{k}"
+        rep = _load_json(sub / "report.json")
+        rrds += sorted(sub.glob("run*.rrd"), key=lambda p: int(p.stem[3:] or 0))
+        if rep is None:
+            lines.append(f"| {k} | — | — | — | — | — | — | — | not run | — |")
+            continue
+        sm = rep["summary"]
+        tp, ph, gap = sm.get("table_paired", {}), sm.get("physics", {}), sm.get("gap", {})
+        if gap.get("runs", 0):
+            gaps.append(gap["inner_pct_pp"])
+            t_in.append(tp["inner_pct"])
+            p_in.append(ph["inner_pct"])
+            t_dk.append(tp["dock_success"])
+            p_dk.append(ph["dock_success"])
+            lines.append(
+                f"| {k} | {gap['runs']}/{sm['starts']} | {tp['inner_pct']:.1f} | "
+                f"{ph['inner_pct']:.1f} | {gap['inner_pct_pp']:+.1f} | "
+                f"{100 * tp['dock_success']:.0f}% | {100 * ph['dock_success']:.0f}% | "
+                f"{gap['dock_success_pp']:+.0f} | {sm['physics_errors']} | "
+                f"{format_seconds(sm['wall_s'])} |"
+            )
+        else:
+            lines.append(
+                f"| {k} | 0/{sm['starts']} | — | — | — | — | — | — | {sm['physics_errors']} | "
+                f"{format_seconds(sm['wall_s'])} |"
+            )
+    if gaps:
+        lines.append(
+            f"| **all** | | **{np.mean(t_in):.1f}** | **{np.mean(p_in):.1f}** | "
+            f"**{np.mean(gaps):+.1f}** | {100 * np.mean(t_dk):.0f}% | {100 * np.mean(p_dk):.0f}% "
+            f"| {100 * (np.mean(t_dk) - np.mean(p_dk)):+.0f} | | |"
+        )
+    lines += ["", "Per-run details: `validation/pop{k}/report.md`.", ""]
+    return lines, rrds
+
+
+def write_report(
+    out: Path,
+    s: ReproduceSettings,
+    world: WorldSettings,
+    stages: dict[str, dict[str, Any]],
+    *,
+    total_wall_s: float,
+    ncpu: int,
+) -> Path:
+    """Write ``out/REPORT.md`` from the files the stages left in ``out``."""
+    now = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+    lines = [
+        "# ServoBot colony reproduction — report",
+        "",
+        f"Written {now} on {platform.node() or 'this machine'} ({ncpu} CPU cores, "
+        f"Python {platform.python_version()}). Settings: `settings.json`; seed {s.seed}.",
+        "",
+        "| stage | wall time | this invocation |",
+        "|---|---|---|",
+    ]
+    for name in STAGES:
+        st = stages.get(name)
+        if st is None:
+            lines.append(f"| {name} | — | not reached |")
+        else:
+            how = st.get("failed") or ("skipped (done earlier)" if st.get("skipped") else "ran")
+            lines.append(f"| {name} | {format_seconds(float(st['wall_s']))} | {how} |")
+    ran = sum(float(st["wall_s"]) for st in stages.values())
+    lines += [
+        f"| **all stages** | **{format_seconds(ran)}** | this invocation took "
+        f"{format_seconds(total_wall_s)} |",
+        "",
+    ]
+    lines += _calibration_section(out)
+    lines += _navigation_section(out)
+    lines += _coverage_section(out)
+    vlines, rrds = _validation_section(out, s)
+    lines += vlines
+    if (out / "calibration" / "calibration.rrd").exists():
+        rrds.insert(0, out / "calibration" / "calibration.rrd")
+    lines += ["## 5. Recordings", "", "Open any run in the rerun viewer:", ""]
+    by_folder: dict[str, list[str]] = {}
+    for p in rrds:
+        by_folder.setdefault(p.parent.relative_to(out).as_posix(), []).append(p.name)
+    for folder, names in by_folder.items():
+        more = f" ({len(names)} recordings in `{folder}/`)" if len(names) > 1 else ""
+        lines.append(f"- `rerun {folder}/{names[0]}`{more}")
+    if not by_folder:
+        lines.append("*(none)*")
+    lines += [
+        "",
+        "Each holds the arena, the robot's bodies, the physics (orange) and table (blue) tracks,",
+        "squares as reached, power, sensors, mode and squares over time, and the instructions.",
+        "",
+        "## 6. Settings",
+        "",
+        "```json",
+        json.dumps({"ReproduceSettings": s.to_dict()}, indent=2),
+        "```",
+        "",
+        "World, GA and physics settings of each stage: `*/settings.json` and",
+        "`validation/pop*/report.json`; calibration provenance: `calibration/gait_table.json`.",
+        "",
+    ]
+    return atomic_write_text(out / "REPORT.md", "\n".join(lines))
+
+
+__all__ = ["STAGES", "format_seconds", "write_report"]
