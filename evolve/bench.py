@@ -17,8 +17,8 @@ import time
 import numba
 import numpy as np
 
-from evolve.codec import random_section
 from evolve.evaluation import evaluate
+from evolve.ga import random_sections
 from evolve.table import PAPER_TABLE
 
 LONG_START_POWER_V = 20.0
@@ -42,7 +42,7 @@ def circling_population(rng: np.random.Generator, n: int) -> np.ndarray:
     the same gene, gait a, gait a — a from ``CIRCLE_GAITS`` (uint8 (n, 16, 30)). A taken branch
     restarts the same sequence, so the robot walks a steady circle whatever it senses."""
     out = np.empty((n, 16, 30), dtype=np.uint8)
-    out[:, 8:] = random_section(rng, n)
+    out[:, 8:] = random_sections(rng, n)
     for i in range(n):
         for g in range(8):
             a = int(rng.choice(CIRCLE_GAITS))

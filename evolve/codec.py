@@ -177,11 +177,6 @@ def write_chromosome(path: str | Path, bits: np.ndarray, header: str = "") -> Pa
     return atomic_write_text(path, head + body)
 
 
-def random_section(rng: np.random.Generator, n: int = 1) -> np.ndarray:
-    """``n`` uniformly random 8-gene sections, uint8 (n, 8, 30)."""
-    return rng.integers(0, 2, size=(n, SECTION_GENES, GENE_BITS), dtype=np.uint8)
-
-
 def _field(bits: np.ndarray, start: int, width: int) -> np.ndarray:
     """Unsigned integer of bits[..., start:start+width], MSB first."""
     out = np.zeros(bits.shape[:-1], dtype=np.int64)
@@ -217,12 +212,13 @@ def decode(bits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     return loops, ops, arg, target
 
 
-def branch_destination(gene: int, test: int, target: int, *, n_genes: int) -> int:
+def branch_destination(gene: int, test: int, target: int, n_genes: int) -> int:
     """Absolute gene a positive branch in ``gene`` goes to (SPEC §4).
 
     In a 16-gene chromosome the coverage section's low-power test goes to gene 8 whatever its
     target, and branches in the navigation section go to 8 + target. In an 8-gene section
-    run alone the target is used as is.
+    run alone the target is used as is. Plain Python on ints, so the numba kernel compiles
+    this very function (``register_jitable``): the rule has one home.
     """
     if n_genes == FULL_GENES:
         if gene >= NAVIGATION_BASE:
@@ -230,6 +226,14 @@ def branch_destination(gene: int, test: int, target: int, *, n_genes: int) -> in
         if test == LOW_POWER_TEST:
             return NAVIGATION_BASE
     return target
+
+
+def next_gene(gene: int) -> int:
+    """The gene after ``gene`` once its loop count is spent: the next of its section, wrapping
+    from the section's last gene to its first (SPEC §4). Plain Python on ints, compiled by
+    the numba kernel too."""
+    base = NAVIGATION_BASE if gene >= NAVIGATION_BASE else 0
+    return base + (gene - base + 1) % SECTION_GENES
 
 
 def instruction_text(op: int, arg: int, dest: int) -> str:
@@ -255,7 +259,7 @@ def disassemble(bits: np.ndarray, *, navigation_offset: bool = False) -> str:
         count = "∞" if loops[g] == LOOP_FOREVER else str(int(loops[g]))
         parts = []
         for k in range(INSTRUCTIONS_PER_GENE):
-            dest = branch_destination(g, int(arg[g, k]), int(target[g, k]), n_genes=n) + offset
+            dest = branch_destination(g, int(arg[g, k]), int(target[g, k]), n) + offset
             parts.append(instruction_text(int(ops[g, k]), int(arg[g, k]), dest))
         lines.append(f"gene {g + offset} ×{count}: " + " | ".join(parts))
     return "\n".join(lines) + "\n"
@@ -283,8 +287,8 @@ __all__ = [
     "decode",
     "disassemble",
     "format_chromosome",
+    "next_gene",
     "parse_chromosome",
-    "random_section",
     "read_chromosome",
     "sensor_names",
     "sensor_test_positive",

@@ -47,110 +47,84 @@ def lit_mask(world: WorldSettings, step: float = LIT_GRID_STEP) -> np.ndarray:
 
 def draw_arena(ax: Any, world: WorldSettings, *, reached: frozenset[int] = frozenset()) -> None:
     """Draw the arena of SPEC §3 on ``ax``; squares in ``reached`` are filled green."""
-    size, sq, n = world.arena_size, world.square_size, world.grid_n
-    dark = ~lit_mask(world)
-    ax.imshow(
-        np.where(dark, 1.0, np.nan),
-        extent=(0, size, 0, size),
-        origin="lower",
-        cmap="Greys",
-        vmin=0,
-        vmax=2.5,
-        alpha=0.55,
-        zorder=0,
-    )
-    half = world.contact_half_width
-    for j in range(n):
-        for i in range(n):
-            idx = i + n * j
-            inner = 1 <= i <= n - 2 and 1 <= j <= n - 2
-            ax.add_patch(
-                patches.Rectangle((i * sq, j * sq), sq, sq, fill=False, lw=0.4, ec="0.6", zorder=1)
-            )
-            fc = "tab:green" if idx in reached else ("#dbe8f5" if inner else "#f2f2f2")
-            ax.add_patch(
-                patches.Rectangle(
-                    (i * sq + sq / 2 - half, j * sq + sq / 2 - half),
-                    2 * half,
-                    2 * half,
-                    fc=fc,
-                    ec="0.75",
-                    lw=0.3,
-                    alpha=0.8 if idx in reached else 0.7,
-                    zorder=1,
-                )
-            )
-    m = world.kill_margin
-    kill = patches.Polygon(
-        [
-            (0, 0),
-            (size, 0),
-            (size, size),
-            (0, size),
-            (0, 0),
-            (m, m),
-            (m, size - m),
-            (size - m, size - m),
-            (size - m, m),
-            (m, m),
-        ],
-        closed=True,
-        fc="tab:red",
-        alpha=0.18,
-        ec="none",
-        zorder=2,
-        label="kill zone",
-    )
-    ax.add_patch(kill)
-    w = world.station_width
-    ax.add_patch(
-        patches.Rectangle(
-            (size - 6, world.station_y - w / 2),
-            6,
-            w,
-            fc="tab:orange",
-            ec="k",
-            lw=0.6,
-            zorder=4,
-            label="power station",
-        )
-    )
-    ax.add_patch(
-        patches.Rectangle(
-            (world.dock_x_min, world.station_y - world.dock_y_half_width),
-            size - world.dock_x_min,
-            2 * world.dock_y_half_width,
-            fill=False,
-            ec="tab:orange",
-            ls="--",
-            lw=0.8,
-            zorder=4,
-            label="docking box",
-        )
-    )
-    lx = [s[0] for s in world.lights]
-    ly = [s[1] for s in world.lights]
-    ax.scatter(lx, ly, marker="*", s=90, c="gold", ec="k", lw=0.5, zorder=5, label="lights")
-    reach = CONE_EDGE_LENGTH_FACTOR * size
-    for k, (x0, y0) in enumerate(world.lights):
-        for side in (-1.0, 1.0):
-            a = np.deg2rad(world.light_axis_deg + side * world.light_half_angle_deg)
-            ax.plot(
-                [x0, x0 + reach * np.sin(a)],
-                [y0, y0 + reach * np.cos(a)],
-                color="goldenrod",
-                ls=":",
-                lw=0.9,
-                zorder=3,
-                label="lit-cone edges" if k == 0 and side < 0 else None,
-            )
-    # legend entry only (zero size): the dark area itself is the grey image above
-    ax.add_patch(patches.Rectangle((0, 0), 0, 0, fc="0.55", alpha=0.55, label="dark area"))
+    size = world.arena_size
+    _draw_dark_area(ax, world)
+    _draw_squares(ax, world, reached)
+    _draw_kill_zone(ax, world)
+    _draw_station(ax, world)
+    _draw_lights(ax, world)
     ax.set_xlim(0, size)
     ax.set_ylim(0, size)
     ax.set_aspect("equal")
     ax.set_xlabel("x (cm, east)")
     ax.set_ylabel("y (cm, north)")
+
+
+def _draw_dark_area(ax: Any, world: WorldSettings) -> None:
+    """Grey where no source lights the floor, plus its legend entry."""
+    size = world.arena_size
+    dark = np.where(~lit_mask(world), 1.0, np.nan)
+    ax.imshow(dark, extent=(0, size, 0, size), origin="lower", cmap="Greys", vmin=0,
+              vmax=2.5, alpha=0.55, zorder=0)  # fmt: skip
+    # legend entry only (zero size): the dark area itself is the grey image
+    ax.add_patch(patches.Rectangle((0, 0), 0, 0, fc="0.55", alpha=0.55, label="dark area"))
+
+
+def _draw_squares(ax: Any, world: WorldSettings, reached: frozenset[int]) -> None:
+    """The grid and each square's central contact zone (inner squares tinted)."""
+    sq, n, half = world.square_size, world.grid_n, world.contact_half_width
+    for j in range(n):
+        for i in range(n):
+            idx = i + n * j
+            inner = geometry.is_inner(idx, world)
+            ax.add_patch(
+                patches.Rectangle((i * sq, j * sq), sq, sq, fill=False, lw=0.4, ec="0.6", zorder=1)
+            )
+            fc = "tab:green" if idx in reached else ("#dbe8f5" if inner else "#f2f2f2")
+            corner = (i * sq + sq / 2 - half, j * sq + sq / 2 - half)
+            ax.add_patch(
+                patches.Rectangle(corner, 2 * half, 2 * half, fc=fc, ec="0.75", lw=0.3,
+                                  alpha=0.8 if idx in reached else 0.7, zorder=1)
+            )  # fmt: skip
+
+
+def _draw_kill_zone(ax: Any, world: WorldSettings) -> None:
+    """The band within ``kill_margin`` of the walls."""
+    size, m = world.arena_size, world.kill_margin
+    ring = [(0, 0), (size, 0), (size, size), (0, size), (0, 0),
+            (m, m), (m, size - m), (size - m, size - m), (size - m, m), (m, m)]  # fmt: skip
+    ax.add_patch(patches.Polygon(ring, closed=True, fc="tab:red", alpha=0.18, ec="none",
+                                 zorder=2, label="kill zone"))  # fmt: skip
+
+
+def _draw_station(ax: Any, world: WorldSettings) -> None:
+    """The station plate on the east wall and the docking box in front of it."""
+    size, w = world.arena_size, world.station_width
+    ax.add_patch(
+        patches.Rectangle((size - 6, world.station_y - w / 2), 6, w, fc="tab:orange", ec="k",
+                          lw=0.6, zorder=4, label="power station")
+    )  # fmt: skip
+    ax.add_patch(
+        patches.Rectangle(
+            (world.dock_x_min, world.station_y - world.dock_y_half_width),
+            size - world.dock_x_min, 2 * world.dock_y_half_width,
+            fill=False, ec="tab:orange", ls="--", lw=0.8, zorder=4, label="docking box",
+        )
+    )  # fmt: skip
+
+
+def _draw_lights(ax: Any, world: WorldSettings) -> None:
+    """The light sources and the edges of their lit cones."""
+    lx = [s[0] for s in world.lights]
+    ly = [s[1] for s in world.lights]
+    ax.scatter(lx, ly, marker="*", s=90, c="gold", ec="k", lw=0.5, zorder=5, label="lights")
+    reach = CONE_EDGE_LENGTH_FACTOR * world.arena_size
+    for k, (x0, y0) in enumerate(world.lights):
+        for side in (-1.0, 1.0):
+            a = np.deg2rad(world.light_axis_deg + side * world.light_half_angle_deg)
+            ax.plot([x0, x0 + reach * np.sin(a)], [y0, y0 + reach * np.cos(a)],
+                    color="goldenrod", ls=":", lw=0.9, zorder=3,
+                    label="lit-cone edges" if k == 0 and side < 0 else None)  # fmt: skip
 
 
 def _save(fig: Any, path: Path) -> Path:

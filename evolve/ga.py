@@ -23,16 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from evolve.codec import GENE_BITS, INSTRUCTION_BITS, INSTRUCTIONS_PER_GENE, LOOP_BITS
 from evolve.settings import GASettings
 
-GENE_BITS = 30
-"""Bits per gene (SPEC §4)."""
-LOOP_BITS = 2
-"""Leading loop-count bits of a gene, untouched by instruction mutation (SPEC §4)."""
-INSTRUCTION_BITS = 7
-"""Bits per instruction (SPEC §4)."""
-INSTRUCTIONS_PER_GENE = 4
-"""Instructions per gene (SPEC §4)."""
 MIN_CUT, MAX_CUT = 1, GENE_BITS - 1
 """Gene-by-gene crossover cut range, inclusive: head = bits [0, cut) of parent 1 (SPEC §5)."""
 

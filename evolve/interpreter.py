@@ -42,6 +42,7 @@ from evolve.codec import (
     branch_destination,
     check_bits,
     decode,
+    next_gene,
 )
 from evolve.settings import WorldSettings
 from evolve.world import World
@@ -241,7 +242,7 @@ class _Run:
                 test = self.arg[g][k]
                 mask = TEST_MASKS[test]
                 positive = (self.active(mask) & mask) == mask
-                dest = branch_destination(g, test, self.target[g][k], n_genes=n)
+                dest = branch_destination(g, test, self.target[g][k], n)
                 self.branches += 1
                 verdict = "taken" if positive else "not taken"
                 text = f"if {TEST_NAMES[test]} goto {dest}: {verdict}"
@@ -258,8 +259,7 @@ class _Run:
                 if rem != 0:
                     rem -= 1
                     if rem == 0:
-                        base = NAVIGATION_BASE if g >= NAVIGATION_BASE else 0
-                        g = base + (g - base + 1) % SECTION_GENES
+                        g = next_gene(g)
                         rem = self.loops[g]
 
 

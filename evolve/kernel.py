@@ -10,8 +10,12 @@ Speed: sensors are evaluated only when a branch reads them and only the ones its
 reached squares live in two uint64 masks; nothing allocates inside the loop. The P × S runs
 are flattened into one ``prange`` with dynamic chunks, for load balance.
 
+Constants and the branch and next-gene rules come from ``evolve.codec`` and the end codes
+from ``evolve.interpreter``: the kernel types none of them again.
+
 Note on numba's cache: a cached kernel is invalidated by edits to this file only, not to
-``geometry.py``; after editing geometry, delete ``evolve/__pycache__/kernel*.nbi/.nbc``.
+``geometry.py`` or ``codec.py``; after editing those, delete
+``evolve/__pycache__/kernel*.nbi/.nbc``.
 """
 
 from __future__ import annotations
@@ -19,7 +23,20 @@ from __future__ import annotations
 import numba
 import numpy as np
 from numba import njit, prange
+from numba.extending import register_jitable
 
+from evolve.codec import (
+    LIGHT_LEFT,
+    LIGHT_RIGHT,
+    LOW_POWER,
+    NAVIGATION_BASE,
+    OBJECT_LEFT,
+    OBJECT_RIGHT,
+    OP_GAIT,
+    TEST_MASKS,
+    branch_destination,
+    next_gene,
+)
 from evolve.geometry import (
     P_BACKUP_GAIT,
     P_BACKUP_N,
@@ -38,16 +55,18 @@ from evolve.geometry import (
     square_is_inner,
     wrap360,
 )
+from evolve.interpreter import (
+    END_BRANCH_LIMIT,
+    END_DOCKED,
+    END_KILL_ZONE,
+    END_POWER_EMPTY,
+    END_STEP_LIMIT,
+)
 
-END_STEP_LIMIT, END_KILL_ZONE, END_POWER_EMPTY, END_BRANCH_LIMIT, END_DOCKED = 0, 1, 2, 3, 4
-_LOW_POWER = 4
-_OBJECT_MASK = 3
-_LIGHT_MASK = 24
-_TEST_MASKS = (0, 1, 2, 3, 4, 8, 16, 24)
-_NAV_BASE = 8
-_SECTION = 8
-_FULL = 16
-_LOW_POWER_TEST = 4
+_OBJECT_MASK = OBJECT_LEFT | OBJECT_RIGHT
+_LIGHT_MASK = LIGHT_LEFT | LIGHT_RIGHT
+_branch_destination = register_jitable(branch_destination)
+_next_gene = register_jitable(next_gene)
 
 OUT_SQUARES, OUT_INNER, OUT_STEPS, OUT_DOCKS, OUT_END = 0, 1, 2, 3, 4
 """Columns of the integer output of ``evaluate_flat``."""
@@ -119,8 +138,8 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
     k = 0
     rem = loops[0]
     while True:
-        in_nav = nav_run or g >= _NAV_BASE
-        if ops[g, k] == 0:
+        in_nav = nav_run or g >= NAVIGATION_BASE
+        if ops[g, k] == OP_GAIT:
             gait = arg[g, k]
             x, y, h, power, lo, hi, squares, inner, end = _walk(
                 gait, table, p, x, y, h, power, lo, hi, squares, inner
@@ -163,10 +182,10 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
                 break
         else:
             test = arg[g, k]
-            mask = _TEST_MASKS[test]
+            mask = TEST_MASKS[test]
             active = 0
-            if (mask & _LOW_POWER) and power < low:
-                active |= _LOW_POWER
+            if (mask & LOW_POWER) and power < low:
+                active |= LOW_POWER
             if mask & _OBJECT_MASK:
                 active |= object_bits(x, y, h, p)
             if mask & _LIGHT_MASK:
@@ -176,12 +195,7 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
                 end = END_BRANCH_LIMIT
                 break
             if (active & mask) == mask:
-                if n_genes == _FULL and g >= _NAV_BASE:
-                    g = _NAV_BASE + target[g, k]
-                elif n_genes == _FULL and test == _LOW_POWER_TEST:
-                    g = _NAV_BASE
-                else:
-                    g = target[g, k]
+                g = _branch_destination(g, test, target[g, k], n_genes)
                 k = 0
                 rem = loops[g]
                 continue
@@ -191,8 +205,7 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
             if rem != 0:
                 rem -= 1
                 if rem == 0:
-                    base = _NAV_BASE if g >= _NAV_BASE else 0
-                    g = base + (g - base + 1) % _SECTION
+                    g = _next_gene(g)
                     rem = loops[g]
     return squares, inner, steps, docks, end, x, y, h
 

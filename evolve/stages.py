@@ -91,6 +91,12 @@ def coverage_stage(world: WorldSettings, navigation: np.ndarray) -> Stage:
     )
 
 
+def navigation_section(bits: np.ndarray) -> np.ndarray:
+    """The (8, 30) navigation section of a chromosome: an 8-gene section as is, or genes
+    8–15 of a full 16-gene chromosome (SPEC §4)."""
+    return bits if bits.shape[0] == SECTION_GENES else bits[SECTION_GENES:]
+
+
 def _check_navigation(navigation: np.ndarray) -> np.ndarray:
     nav = np.asarray(navigation)
     if nav.shape != (SECTION_GENES, GENE_BITS) or not np.isin(nav, (0, 1)).all():
@@ -294,19 +300,7 @@ def run_coverage(
         on_generation=on_generation,
     )
     gens = save_generations(ga)
-    inner = np.zeros((ga.populations, len(gens)))
-    squares = np.zeros_like(inner)
-    for k in range(ga.populations):
-        bests = []
-        for g in gens:
-            path = folder / "populations" / f"pop{k}_gen{g:04d}.npz"
-            data = read_npz(path, "saved population", ("best",), error=StageError)
-            bests.append(data["best"].astype(np.uint8))
-        _, ev, _, inverse = evaluate_sections(np.stack(bests), test_starts, stage, table, world)
-        inner[k] = (
-            100.0 * np.asarray(ev.inner_squares)[inverse].mean(axis=1) / world.inner_square_count
-        )
-        squares[k] = np.asarray(ev.squares)[inverse].mean(axis=1)
+    inner, squares = figure9_test(folder, stage, table, world, gens, ga.populations, test_starts)
     mean = inner.mean(axis=0)
     _write_figure9(folder, gens, inner, squares)
     figures.figure9(folder / "figure9.png", gens, inner)
@@ -315,28 +309,18 @@ def run_coverage(
     for r in results:
         k = r.index
         full = stage.genomes(r.best[None])[0]
-        header = _provenance(
-            "coverage",
-            k,
-            ga,
-            table,
+        extra = (
             "16 genes: coverage section (learned) + navigation (fixed); "
-            f"Figure 9 test {inner[k, -1]:.1f}% of the 64 inner squares",
+            f"Figure 9 test {inner[k, -1]:.1f}% of the {world.inner_square_count} inner squares"
         )
-        write_chromosome(folder / f"best_pop{k}.txt", full, header)
-        fig10.append(
-            {
-                "population": k,
-                **figures.figure10(
-                    folder / f"figure10_pop{k}.png",
-                    full,
-                    table=table,
-                    world=world,
-                    start=FIGURE10_START,
-                    title=f"population {k}",
-                ),
-            }
+        write_chromosome(
+            folder / f"best_pop{k}.txt", full, _provenance("coverage", k, ga, table, extra)
         )
+        fig = figures.figure10(
+            folder / f"figure10_pop{k}.png", full, table=table, world=world,
+            start=FIGURE10_START, title=f"population {k}",
+        )  # fmt: skip
+        fig10.append({"population": k, **fig})
     summary = {
         "stage": "coverage",
         "generations": list(gens),
@@ -353,6 +337,32 @@ def run_coverage(
     }
     atomic_write_json(folder / "summary.json", summary)
     return summary
+
+
+def figure9_test(
+    folder: Path,
+    stage: Stage,
+    table: GaitTable,
+    world: WorldSettings,
+    generations: tuple[int, ...],
+    populations: int,
+    test_starts: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Figure 9 (SPEC §5): the saved best of every generation in ``generations`` of every
+    population, run from the shared ``test_starts``. Returns (inner %, of the inner squares;
+    mean squares, of 100), each (populations, generations)."""
+    inner = np.zeros((populations, len(generations)))
+    squares = np.zeros_like(inner)
+    for k in range(populations):
+        bests = []
+        for g in generations:
+            path = folder / "populations" / f"pop{k}_gen{g:04d}.npz"
+            bests.append(read_npz(path, "saved population", ("best",), error=StageError)["best"])
+        sections = np.stack(bests).astype(np.uint8)
+        _, ev, _, inverse = evaluate_sections(sections, test_starts, stage, table, world)
+        inner[k] = 100.0 * ev.inner_squares[inverse].mean(axis=1) / world.inner_square_count
+        squares[k] = ev.squares[inverse].mean(axis=1)
+    return inner, squares
 
 
 def _write_figure9(folder: Path, gens: tuple[int, ...], inner: np.ndarray, sq: np.ndarray) -> None:
@@ -377,6 +387,7 @@ def _write_figure9(folder: Path, gens: tuple[int, ...], inner: np.ndarray, sq: n
 
 
 __all__ = [
+    "navigation_section",
     "StageError",
     "run_navigation",
     "run_coverage",

@@ -10,7 +10,7 @@ import datetime as dt
 import json
 import platform
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -18,12 +18,7 @@ from calibration.report import TOLERANCE, within_tolerance
 from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE, load_table
 from infra.io import atomic_write_text
-
-if TYPE_CHECKING:
-    from servobot.reproduce import ReproduceSettings
-
-STAGES = ("calibration", "navigation", "coverage", "validation")
-"""The stages of a reproduction, in order (the report is always rewritten)."""
+from servobot.reproduce_settings import STAGES, ReproduceSettings
 
 
 def _load_json(path: Path) -> dict[str, Any] | None:
@@ -254,4 +249,4 @@ def write_report(
     return atomic_write_text(out / "REPORT.md", "\n".join(lines))
 
 
-__all__ = ["STAGES", "format_seconds", "write_report"]
+__all__ = ["format_seconds", "write_report"]

@@ -27,7 +27,6 @@ With ``out_dir``: ``report.json``, ``report.md`` and ``tracks.npz`` (per run ``t
 from __future__ import annotations
 
 import dataclasses
-import io
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -38,14 +37,14 @@ import numpy as np
 
 from evolve import geometry
 from evolve.codec import FULL_GENES, check_bits, format_chromosome
-from evolve.interpreter import END_DOCKED, END_NAMES, run
+from evolve.interpreter import END_NAMES, run
 from evolve.settings import WorldSettings
 from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
 from infra.executors import Executor, Failed, make_executor
-from infra.io import atomic_write, atomic_write_json, atomic_write_text
 from servo_mj.robot.model import model_sha256
 from servo_mj.world.arena import ArenaSettings, overlaps_station
+from servobot.validation_report import summarise, write_report
 
 MODE = "coverage"
 """Validation runs the full controller in coverage mode (SPEC §5)."""
@@ -239,62 +238,6 @@ def _state_logger(rec: Any) -> Callable[[Any], None]:
     return log
 
 
-def _world_summary(recs: list[dict[str, Any]], n_inner: int) -> dict[str, Any]:
-    if not recs:
-        return {"runs": 0}
-    inner = np.array([r["inner_squares"] for r in recs], dtype=float)
-    ends: dict[str, int] = {}
-    for r in recs:
-        ends[r["end"]["name"]] = ends.get(r["end"]["name"], 0) + 1
-    return {
-        "runs": len(recs),
-        "mean_squares": float(np.mean([r["squares"] for r in recs])),
-        "mean_inner_squares": float(inner.mean()),
-        "inner_pct": float(100.0 * inner.mean() / n_inner),
-        "mean_steps": float(np.mean([r["steps"] for r in recs])),
-        "docks_total": int(sum(r["docks"] for r in recs)),
-        "dock_success": float(np.mean([r["docks"] > 0 for r in recs])),
-        "docked_end": int(sum(r["end"]["code"] == END_DOCKED for r in recs)),
-        "ends": ends,
-        "mean_wall_s": float(np.mean([r["wall_s"] for r in recs])),
-    }
-
-
-def summarise(runs: list[dict[str, Any]], world: WorldSettings, wall_s: float) -> dict[str, Any]:
-    """Summary of per-run records: per world, and the gap over runs whose physics finished."""
-    n_inner = world.inner_square_count
-    table = [r["table"] for r in runs if r.get("table")]
-    paired = [r for r in runs if r.get("table") and r.get("physics")]
-    t_pair = _world_summary([r["table"] for r in paired], n_inner)
-    p_pair = _world_summary([r["physics"] for r in paired], n_inner)
-    gap: dict[str, Any] = {"runs": len(paired)}
-    if paired:
-        gap.update(
-            inner_pct_pp=t_pair["inner_pct"] - p_pair["inner_pct"],
-            squares=t_pair["mean_squares"] - p_pair["mean_squares"],
-            dock_success_pp=100.0 * (t_pair["dock_success"] - p_pair["dock_success"]),
-            mean_abs_inner_diff=float(
-                np.mean(
-                    [
-                        abs(r["table"]["inner_squares"] - r["physics"]["inner_squares"])
-                        for r in paired
-                    ]
-                )
-            ),
-        )
-    return {
-        "starts": len(runs),
-        "physics_ok": len(paired),
-        "physics_errors": sum(1 for r in runs if r.get("error")),
-        "inner_squares_total": n_inner,
-        "table": _world_summary(table, n_inner),
-        "table_paired": t_pair,
-        "physics": p_pair,
-        "gap": gap,
-        "wall_s": round(wall_s, 3),
-    }
-
-
 def _jsonable(obj: Any) -> Any:
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return _jsonable(dataclasses.asdict(obj))
@@ -309,6 +252,36 @@ def _jsonable(obj: Any) -> Any:
     if isinstance(obj, Path):
         return str(obj)
     return obj
+
+
+def check_starts(
+    starts: Any, world: WorldSettings, arena: ArenaSettings
+) -> list[tuple[float, ...]]:
+    """An (N, 3) array of start poses, each checked by ``check_start``."""
+    arr = np.asarray(starts, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
+        raise ValidationError(f"starts must be an (N, 3) array of x, y, h, got {arr.shape}")
+    return [check_start(s, world, arena, name=f"start {k}") for k, s in enumerate(arr)]
+
+
+def _run_jobs(
+    ex: Executor, jobs: list[StartJob], on_run: Callable[[dict[str, Any]], None] | None
+) -> list[dict[str, Any]]:
+    """Every job's record in start order; a worker that failed gives a record with its error."""
+    runs: list[dict[str, Any]] = [{} for _ in jobs]
+    for k, outcome in ex.imap(run_start, jobs):
+        if isinstance(outcome, Failed):
+            x, y, h = jobs[k].start
+            rec: dict[str, Any] = {
+                "index": k, "start": {"x": x, "y": y, "h": h}, "table": None,
+                "physics": None, "error": outcome.message, "tracks": {},
+            }  # fmt: skip
+        else:
+            rec = outcome.value
+        runs[k] = rec
+        if on_run is not None:
+            on_run(rec)
+    return runs
 
 
 def validate(
@@ -341,10 +314,7 @@ def validate(
     arena = arena or ArenaSettings()
     arr = check_chromosome(bits)
     values = validate_table(getattr(table, "values", table))
-    starts_arr = np.asarray(starts, dtype=float)
-    if starts_arr.ndim != 2 or starts_arr.shape[1] != 3 or len(starts_arr) == 0:
-        raise ValidationError(f"starts must be an (N, 3) array of x, y, h, got {starts_arr.shape}")
-    poses = [check_start(s, world, arena, name=f"start {k}") for k, s in enumerate(starts_arr)]
+    poses = check_starts(starts, world, arena)
     if max_steps is not None and max_steps < 0:
         raise ValidationError(f"max_steps must be >= 0, got {max_steps}")
     out = None if out_dir is None else Path(out_dir)
@@ -358,29 +328,15 @@ def validate(
             arena=arena,
             physics=physics,
             max_steps=max_steps,
-            rrd_path=str(out / f"run{k}.rrd") if (rrd and out is not None) else None,
             seed=seed,
+            rrd_path=str(out / f"run{k}.rrd") if (rrd and out is not None) else None,
         )  # fmt: skip
         for k, p in enumerate(poses)
     ]
-    ex = executor or make_executor(workers)
     t0 = time.perf_counter()
-    runs: list[dict[str, Any] | None] = [None] * len(jobs)
-    for k, outcome in ex.imap(run_start, jobs):
-        if isinstance(outcome, Failed):
-            x, y, h = poses[k]
-            rec: dict[str, Any] = {
-                "index": k, "start": {"x": x, "y": y, "h": h}, "table": None,
-                "physics": None, "error": outcome.message, "tracks": {},
-            }  # fmt: skip
-        else:
-            rec = outcome.value
-        runs[k] = rec
-        if on_run is not None:
-            on_run(rec)
+    runs = _run_jobs(executor or make_executor(workers), jobs, on_run)
     wall = time.perf_counter() - t0
-    done = [r for r in runs if r is not None]
-    tracks = {f"{w}_{r['index']}": t for r in done for w, t in r.pop("tracks", {}).items()}
+    tracks = {f"{w}_{r['index']}": t for r in runs for w, t in r.pop("tracks", {}).items()}
     report = {
         "chromosome": format_chromosome(arr),
         "table": {
@@ -397,110 +353,12 @@ def validate(
             "mode": MODE,
         },
         "meta": _jsonable(meta or {}),
-        "runs": done,
-        "summary": summarise(done, world, wall),
+        "runs": runs,
+        "summary": summarise(runs, world, wall),
     }
     if out is not None:
         write_report(out, report, tracks)
     return report
-
-
-def write_report(out: Path, report: dict[str, Any], tracks: dict[str, np.ndarray]) -> None:
-    """Write ``report.json``, ``report.md`` and ``tracks.npz`` atomically into ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
-
-    def write_npz(p: Path) -> None:
-        buf = io.BytesIO()
-        np.savez_compressed(buf, **tracks)
-        p.write_bytes(buf.getvalue())
-
-    atomic_write(out / "tracks.npz", write_npz)
-    atomic_write_json(out / "report.json", report)
-    atomic_write_text(out / "report.md", report_markdown(report))
-
-
-def _cell(rec: dict[str, Any] | None) -> str:
-    if rec is None:
-        return "— | — | — | — | —"
-    return (
-        f"{rec['squares']} | {rec['inner_squares']} | {rec['docks']} | {rec['steps']} | "
-        f"{rec['end']['name']}"
-    )
-
-
-def run_rows(report: dict[str, Any]) -> list[str]:
-    """The per-start Markdown table (also printed by the CLI)."""
-    rows = [
-        "| # | start x, y, h | table sq | inner | docks | steps | end "
-        "| physics sq | inner | docks | steps | end | Δ inner |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in report["runs"]:
-        s = r["start"]
-        t, p = r.get("table"), r.get("physics")
-        d = "—" if not (t and p) else f"{t['inner_squares'] - p['inner_squares']:+d}"
-        phys = _cell(p) if p else f"error: {r.get('error')} | | | |"
-        rows.append(
-            f"| {r['index']} | {s['x']:.1f}, {s['y']:.1f}, {s['h']:.1f} | {_cell(t)} | "
-            f"{phys} | {d} |"
-        )
-    return rows
-
-
-def summary_lines(report: dict[str, Any]) -> list[str]:
-    """The summary as Markdown lines (also printed by the CLI)."""
-    s = report["summary"]
-    lines = [
-        f"- starts: {s['starts']}, physics finished: {s['physics_ok']}, "
-        f"physics errors: {s['physics_errors']}; wall time {s['wall_s']:.1f} s",
-    ]
-    for name, key in (("table (all runs)", "table"), ("table (paired)", "table_paired"),
-                      ("physics", "physics")):  # fmt: skip
-        w = s[key]
-        if not w.get("runs"):
-            lines.append(f"- {name}: no runs")
-            continue
-        lines.append(
-            f"- {name}: mean squares {w['mean_squares']:.2f}, mean inner "
-            f"{w['mean_inner_squares']:.2f} = {w['inner_pct']:.1f}% of {s['inner_squares_total']}, "
-            f"docks {w['docks_total']} (success {100 * w['dock_success']:.0f}% of runs), "
-            f"mean steps {w['mean_steps']:.0f}, ends {w['ends']}, {w['mean_wall_s']:.2f} s/run"
-        )
-    g = s["gap"]
-    if g.get("runs"):
-        lines.append(
-            f"- gap table − physics over {g['runs']} paired runs: inner {g['inner_pct_pp']:+.1f} "
-            f"pp, squares {g['squares']:+.2f}, docking success {g['dock_success_pp']:+.0f} pp, "
-            f"mean |Δ inner| per run {g['mean_abs_inner_diff']:.2f}"
-        )
-    return lines
-
-
-def report_markdown(report: dict[str, Any]) -> str:
-    """``report.md``: settings in brief, per-start table, summary, errors."""
-    st = report["settings"]
-    lines = [
-        "# Validation: table simulation vs MuJoCo physics",
-        "",
-        f"Gait table: `{report['table']['source']}`; mode {st['mode']}, "
-        f"{st['max_steps']} steps per run; {report['summary']['starts']} starts.",
-        "",
-        "## Summary",
-        "",
-        *summary_lines(report),
-        "",
-        "## Per start",
-        "",
-        *run_rows(report),
-        "",
-    ]
-    errors = [r for r in report["runs"] if r.get("error")]
-    if errors:
-        lines += ["## Errors", ""]
-        lines += [f"- run {r['index']}: {r['error']}" for r in errors]
-        lines.append("")
-    lines += ["## Chromosome", "", "```", report["chromosome"].rstrip(), "```", ""]
-    return "\n".join(lines)
 
 
 __all__ = [
@@ -510,9 +368,6 @@ __all__ = [
     "check_chromosome",
     "check_start",
     "load_checked_table",
-    "report_markdown",
     "run_start",
-    "summarise",
     "validate",
-    "write_report",
 ]

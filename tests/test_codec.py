@@ -13,10 +13,10 @@ from evolve.codec import (
     disassemble,
     format_chromosome,
     parse_chromosome,
-    random_section,
     read_chromosome,
     write_chromosome,
 )
+from evolve.ga import random_sections
 
 FILLER = gene("01", G(7), G(7), G(7), G(7))
 
@@ -39,7 +39,7 @@ def test_format_groups_loop_and_instructions() -> None:
 
 
 def test_file_round_trip_with_header(tmp_path) -> None:
-    bits = random_section(np.random.default_rng(3))[0]
+    bits = random_sections(np.random.default_rng(3), 1)[0]
     path = write_chromosome(tmp_path / "best.txt", bits, header="best of population 2\nfit 0.5")
     text = path.read_text()
     assert text.startswith("# best of population 2\n# fit 0.5\n")
@@ -135,9 +135,9 @@ def test_disassemble_full_chromosome_targets() -> None:
     assert lines[8] == "gene 8 ×3: if low-power goto 11 | if always goto 9 | gait 9 | gait 9"
 
 
-def test_random_section_is_seeded() -> None:
-    a = random_section(np.random.default_rng(7), n=4)
-    b = random_section(np.random.default_rng(7), n=4)
+def test_random_sections_are_seeded() -> None:
+    a = random_sections(np.random.default_rng(7), 4)
+    b = random_sections(np.random.default_rng(7), 4)
     assert a.shape == (4, 8, 30) and a.dtype == np.uint8 and np.array_equal(a, b)
     assert set(np.unique(a)) == {0, 1}
 

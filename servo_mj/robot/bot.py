@@ -188,10 +188,6 @@ class ServoBot:
         self.cycles += 1
         return result
 
-    def run_gaits(self, gaits: list[int]) -> list[CycleResult]:
-        """Run a sequence of gait cycles."""
-        return [self.run_gait(g) for g in gaits]
-
     # --- faults ----------------------------------------------------------------------------
     def _clear_warnings(self) -> None:
         for w in self.data.warning:

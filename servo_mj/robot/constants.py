@@ -13,7 +13,6 @@ axis; positive = foot up on both sides).
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from pathlib import Path
 
 MODEL_DIR = Path(__file__).resolve().parents[2] / "models" / "servobot"
@@ -48,18 +47,15 @@ FREE_JOINT = "root"
 """The torso's free joint in the bare robot (removed when attached into an arena)."""
 
 OBJECT_SENSOR_SITES: tuple[str, str] = ("object_left", "object_right")
-"""Sites of the (left, right) object sensors: front of the torso, x axis along the span centre."""
+"""Marker sites of the (left, right) object sensors, x axis along the span centre: decoration
+only. The object sensors in physics are the rangefinder fans that ``servo_mj.world.sensors``
+adds to the torso."""
 LIGHT_SENSOR_SITES: tuple[str, str] = ("light_left", "light_right")
-"""Sites of the (left, right) light sensors: front of the torso, x axis along the span centre."""
+"""Marker sites of the (left, right) light sensors, x axis along the span centre: decoration
+only. Light sensing is the SPEC's geometric rule on the physical pose (MuJoCo has no light
+sensor)."""
 PROBE_SITES: tuple[str, str] = ("probe_left", "probe_right")
 """Sites at the tips of the two metal docking probes."""
-PROBE_GEOMS: tuple[str, str] = ("probe_left", "probe_right")
-"""Collision geoms of the two metal docking probes."""
-
-
-def prefixed(names: Iterable[str], prefix: str = "") -> tuple[str, ...]:
-    """Return ``names`` with ``prefix`` prepended to each."""
-    return tuple(prefix + n for n in names)
 
 
 def joint_name(leg: str, role: str, prefix: str = "") -> str:
@@ -103,21 +99,6 @@ def foot_sites(prefix: str = "") -> tuple[str, ...]:
     return tuple(foot_site_name(leg, prefix) for leg in LEGS)
 
 
-def object_sensor_sites(prefix: str = "") -> tuple[str, str]:
-    """(left, right) object-sensor site names."""
-    return (prefix + OBJECT_SENSOR_SITES[0], prefix + OBJECT_SENSOR_SITES[1])
-
-
-def light_sensor_sites(prefix: str = "") -> tuple[str, str]:
-    """(left, right) light-sensor site names."""
-    return (prefix + LIGHT_SENSOR_SITES[0], prefix + LIGHT_SENSOR_SITES[1])
-
-
 def probe_sites(prefix: str = "") -> tuple[str, str]:
     """(left, right) probe-tip site names."""
     return (prefix + PROBE_SITES[0], prefix + PROBE_SITES[1])
-
-
-def probe_geoms(prefix: str = "") -> tuple[str, str]:
-    """(left, right) probe collision-geom names."""
-    return (prefix + PROBE_GEOMS[0], prefix + PROBE_GEOMS[1])

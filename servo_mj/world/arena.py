@@ -249,8 +249,7 @@ def compile_arena(
     if spec.scene_xml is not None:
         match_scene(model, mujoco.MjModel.from_xml_path(str(spec.scene_xml)))
     data = mujoco.MjData(model)
-    attached = root.worldbody.find_all("body")
-    prefix = _robot_prefix(root, attached)
+    prefix = _robot_prefix(root)
     mujoco.mj_forward(model, data)
     index = ObjectSensorIndex.from_model(model, prefix, arena.rays_per_span)
     return ArenaModel(model, data, prefix, index, world, arena, xml)
@@ -277,7 +276,7 @@ def match_scene(model: mujoco.MjModel, scene: mujoco.MjModel) -> None:
             getattr(model, "geom_" + f)[dst] = getattr(scene, "geom_" + f)[src]
 
 
-def _robot_prefix(root: mjcf.RootElement, bodies: list) -> str:
+def _robot_prefix(root: mjcf.RootElement) -> str:
     """The name prefix that ``attach`` gave the robot (e.g. ``"servobot/"``)."""
     for b in root.worldbody.all_children():
         if b.tag == "body":

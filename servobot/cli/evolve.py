@@ -103,16 +103,16 @@ def ga_settings(args: argparse.Namespace) -> GASettings:
 
 
 def load_navigation(path: Path) -> np.ndarray:
-    """The (8, 30) navigation section of ``path`` (8 genes, or genes 8–15 of 16)."""
-    from evolve.codec import SECTION_GENES, read_chromosome
+    """The navigation section of ``path`` (``evolve.stages.navigation_section``)."""
+    from evolve.codec import read_chromosome
+    from evolve.stages import navigation_section
 
     if not path.exists():
         raise CliError(
             f"{path}: no navigation section file; run 'servobot evolve navigation' with the "
             "same --out first, or give --navigation FILE"
         )
-    bits = read_chromosome(path)
-    return bits if bits.shape[0] == SECTION_GENES else bits[SECTION_GENES:]
+    return navigation_section(read_chromosome(path))
 
 
 def _print_navigation(summary: dict[str, Any], out: Path) -> None:

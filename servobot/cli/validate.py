@@ -26,10 +26,9 @@ from servobot.validate import (
     check_chromosome,
     check_start,
     load_checked_table,
-    run_rows,
-    summary_lines,
     validate,
 )
+from servobot.validation_report import run_rows, summary_lines
 
 DEFAULT_STARTS = 20
 """Start poses drawn when no ``--start`` is given."""
