@@ -16,7 +16,7 @@ from pathlib import Path
 from calibration.calibrate import calibrate
 from calibration.fit import FitSettings
 from calibration.measure import DEFAULTS, CalibrationSettings
-from calibration.report import format_table
+from calibration.report import format_energy, format_table
 from servo_mj.robot.bot import PhysicsError
 from servo_mj.robot.gaits import PARAMS_JSON, GaitLibrary
 
@@ -72,6 +72,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--rrd", type=Path, default=None, help="record the walks for rerun (.rrd)")
     p.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)",
+    )
+    p.add_argument(
         "--workers",
         type=int,
         default=min(2, os.cpu_count() or 1),
@@ -106,8 +113,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"servobot calibrate: {exc}", file=sys.stderr)
         return 2
     settings = CalibrationSettings(
-        cycles=args.cycles, settle_cycles=args.settle_cycles, seed=args.seed, noise_rad=args.noise
-    )
+        cycles=args.cycles, settle_cycles=args.settle_cycles, seed=args.seed, noise_rad=args.noise,
+        model=None if args.model is None else str(args.model),
+    )  # fmt: skip
     fit = None
     if args.fit:
         fit = FitSettings(
@@ -138,9 +146,13 @@ def main(argv: list[str] | None = None) -> int:
     except PhysicsError as exc:
         print(f"servobot calibrate: physics failed: {exc}", file=sys.stderr)
         return 1
+    except (OSError, ValueError) as exc:  # a missing or broken --model file
+        print(f"servobot calibrate: {exc}", file=sys.stderr)
+        return 2
     if res.params_path is not None:
         print(f"fitted gait parameters written to {args.params_out} and {res.params_path}")
     print(format_table(res.values, res.std))
+    print(format_energy(res.energy))
     print(f"wrote {res.table_path} and {res.figure_path} ({res.wall_s:.1f} s wall)")
     if args.rrd is not None:
         print(f"recording saved to {args.rrd}")
