@@ -129,8 +129,8 @@ class EnergyMeter:
 
     def record(self, data: mujoco.MjData) -> None:
         """After a physics step: the servos' torque and speed during that step."""
-        self._torque.append(data.actuator_force[self.actuators].copy())
-        self._speed.append(data.actuator_velocity[self.actuators].copy())
+        self._torque.append(data.actuator_force[self.actuators])  # fancy index: a copy
+        self._speed.append(data.actuator_velocity[self.actuators])
 
     def take(self) -> float:
         """Energy drawn from the supply since the last ``take``, J."""

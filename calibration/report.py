@@ -20,9 +20,7 @@ PAPER_STILL_GAIT = WorldSettings().still_gait
 """The gait the paper charges nothing for."""
 
 
-def draw_dv(
-    ax: Any, gaits: np.ndarray, series: list[tuple[str, np.ndarray, np.ndarray]]
-) -> None:
+def draw_dv(ax: Any, gaits: np.ndarray, series: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
     """Voltage drop per cycle of each (label, dV, std) series (series without a measured dV
     are left out) beside the paper's constant (gait 7: 0)."""
     series = [s for s in series if not np.all(np.isnan(s[1]))]

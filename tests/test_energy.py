@@ -185,3 +185,23 @@ def test_evolve_cli_power_table(tmp_path, capsys) -> None:
 
 def test_gait_table_dataclass_has_no_energy_by_default() -> None:
     assert GaitTable(PAPER_TABLE.copy()).dv is None
+
+
+def test_retest_finalists_under_costlier_gaits(tmp_path, capsys) -> None:
+    from evolve.codec import write_chromosome
+    from evolve.retest import main, retest
+
+    rng = np.random.default_rng(5)
+    (tmp_path / "coverage").mkdir()
+    for k in range(3):
+        write_chromosome(tmp_path / "coverage" / f"best_pop{k}.txt",
+                         rng.integers(0, 2, size=(16, 30), dtype=np.uint8))  # fmt: skip
+    paper = load_table("paper")
+    cheap = retest(tmp_path, paper, WORLD, starts=30)
+    dear = retest(tmp_path, paper, with_table_power(WORLD, [0.06] * 16), starts=30)
+    assert [r["finalist"] for r in cheap] == ["best_pop0", "best_pop1", "best_pop2"]
+    assert sum(r["power_empty"] for r in dear) > sum(r["power_empty"] for r in cheap)
+    assert sum(r["squares"] for r in dear) < sum(r["squares"] for r in cheap)
+    assert main([str(tmp_path), "--starts", "30"]) == 0
+    assert "mean inner coverage" in capsys.readouterr().out
+    assert main([str(tmp_path), "--power", "table"]) == 2  # the paper's table has no dV
