@@ -134,6 +134,21 @@ def test_cli_smoke(chromosome, tmp_path, capsys):
     assert "| # | start" in printed and "physics:" in printed
 
 
+def test_cli_station_height_reaches_the_physics_arena(chromosome, tmp_path):
+    """``--station-height`` sets the physics block's height (``ArenaSettings``; what the
+    rangefinders see of a tall block is tested in ``test_physics_world``); a height ≤ 0 is
+    refused."""
+    out = tmp_path / "tall"
+    rc = validate_cli.main(
+        [str(chromosome), "--start", "440", "250", "90", "--steps", "1", "--workers", "1",
+         "--no-progress", "--out", str(out), "--station-height", "0.30"]
+    )  # fmt: skip
+    assert rc == 0
+    doc = json.loads((out / "report.json").read_text())
+    assert doc["settings"]["ArenaSettings"]["station_height_m"] == 0.30
+    assert validate_cli.main([str(chromosome), "--station-height", "-1", "--out", str(out)]) == 2
+
+
 def test_cli_rrd_writes_one_recording_per_run(chromosome, tmp_path):
     out = tmp_path / "out"
     rc = validate_cli.main(

@@ -10,6 +10,7 @@ errors are in the report), 2 = bad input (message names the problem).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ from evolve.codec import ChromosomeError, read_chromosome
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
 from servo_mj.robot.settings import PhysicsSettings
+from servo_mj.world.arena import ArenaSettings
 from servobot.validate import (
     ValidationError,
     check_chromosome,
@@ -105,6 +107,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help="robot model file in physics, e.g. from 'servobot variant' (default: shipped); "
         "a --table PATH must have been calibrated on it",
     )
+    p.add_argument(
+        "--station-height",
+        type=float,
+        default=None,
+        metavar="M",
+        help="height of the physics station block, m (default ArenaSettings: 0.10, below the "
+        "rangefinder rays; 0.30 lets the object sensors see the block)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p.parse_args(argv)
 
@@ -132,6 +142,8 @@ def prepare(args: argparse.Namespace, world: WorldSettings) -> tuple[np.ndarray,
         raise InputError(f"--noise must be a finite number >= 0, got {args.noise}")
     if args.steps is not None and args.steps < 0:
         raise InputError(f"--steps must be at least 0, got {args.steps}")
+    if args.station_height is not None and not (0.0 < args.station_height < np.inf):
+        raise InputError(f"--station-height must be a height > 0 m, got {args.station_height}")
     return bits, starts
 
 
@@ -148,6 +160,9 @@ def main(argv: list[str] | None = None) -> int:
         print(warning, file=sys.stderr)
 
     physics = None if args.noise is None else PhysicsSettings(servo_noise_rad=args.noise)
+    arena = ArenaSettings()
+    if args.station_height is not None:
+        arena = dataclasses.replace(arena, station_height_m=args.station_height)
     bar = tqdm(total=len(starts), desc="validate", unit="start", disable=args.no_progress)
 
     def on_run(rec: dict[str, Any]) -> None:
@@ -162,6 +177,7 @@ def main(argv: list[str] | None = None) -> int:
             table=table,
             world=world,
             physics=physics,
+            arena=arena,
             out_dir=args.out,
             rrd=args.rrd,
             workers=args.workers,
