@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.report import TOLERANCE, draw_dv, within_tolerance
+from calibration.report import TOLERANCE, draw_dv, save_png, within_tolerance
 from evolve.table import DV, DV_STD, N_GAITS, PAPER_TABLE, GaitTable, load_table
-from infra.io import atomic_write, atomic_write_text
+from infra.io import atomic_write_text
 
 FIGURE_FILE = "compare.png"
 CSV_FILE = "compare.csv"
@@ -159,15 +159,7 @@ def save_comparison_figure(path: str | Path, cmp: Comparison) -> Path:
         f"Gait tables compared ({', '.join(cmp.labels)}); tolerance of Figure 4: "
         f"{TOLERANCE[0]:g} cm, {TOLERANCE[2]:g}°"
     )
-    fig.tight_layout()
-
-    def write(p: Path) -> None:
-        fig.savefig(p, dpi=110)
-
-    try:
-        return atomic_write(path, write)
-    finally:
-        plt.close(fig)
+    return save_png(fig, path)
 
 
 def compare_tables(

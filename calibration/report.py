@@ -133,12 +133,15 @@ def save_figure(
     axes[-1].set_xticks(gaits)
     axes[-1].set_xlabel("gait")
     fig.suptitle("ServoBot gait table: MuJoCo calibration vs the paper's Figure 4")
+    return save_png(fig, path)
+
+
+def save_png(fig: Any, path: str | Path) -> Path:
+    """Write a matplotlib figure as a PNG atomically (110 dpi) and close it."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
-
-    def write(p: Path) -> None:
-        fig.savefig(p, dpi=110)
-
     try:
-        return atomic_write(path, write)
+        return atomic_write(path, lambda p: fig.savefig(p, dpi=110))
     finally:
         plt.close(fig)
