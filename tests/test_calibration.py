@@ -153,7 +153,7 @@ def test_shipped_gaits_match_figure4_on_a_seed_the_fit_never_saw() -> None:
     assert params["fit_settings"]["seed"] != UNSEEN_SEED
     settings = CalibrationSettings(seed=UNSEEN_SEED)
     values, _ = summarise(measure_all(workers=2, **settings.measure_kwargs()))
-    ok = within_tolerance(values)
+    ok = within_tolerance(values[:, :3])  # F, T, dH (the fourth column is energy)
     assert ok.all(), f"outside tolerance (gait, column): {np.argwhere(~ok).tolist()}"
 
 
