@@ -208,3 +208,14 @@ def test_reproduce_model_runs_the_whole_pipeline_for_the_variant(files, tmp_path
     shipped = dataclasses.replace(settings, model=None)
     with pytest.raises(ReproduceError, match="other settings"):
         reproduce(out, settings=shipped, workers=1, log=lambda _m: None)
+
+
+def test_fit_on_a_variant_never_replaces_the_shipped_parameters(files, tmp_path) -> None:
+    from servo_mj.robot.gaits import PARAMS_JSON
+
+    shipped = PARAMS_JSON.read_bytes()
+    args = ["calibrate", "--model", str(files["heavy"]), "--fit", "--fit-evals", "1"]
+    assert servobot([*args, "--cycles", "1", "--workers", "1", "--out", str(tmp_path)]) == 0
+    assert PARAMS_JSON.read_bytes() == shipped
+    fitted = json.loads((tmp_path / "gait_params.json").read_text())
+    assert fitted["model_sha256"] == model_sha256(files["heavy"])
