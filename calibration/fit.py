@@ -48,6 +48,8 @@ class FitSettings:
     """Stop once every |error| / tolerance is below this."""
     step: tuple[float, float, float, float] = (0.12, 0.12, 0.06, 0.06)
     """Initial simplex steps of (left, right, left_offset, right_offset)."""
+    model: str | None = None
+    """The robot the gaits are fitted on: None = the shipped ServoBot, else a model file."""
 
 
 class _Done(Exception):
@@ -72,7 +74,7 @@ def fit_gait(
     g = check_gait(gait)
     target = PAPER_TABLE[g] if target is None else np.asarray(target, dtype=float)
     lift = library.rows[g][4]
-    model, _ = load_robot(scene=True)
+    model, _ = load_robot(scene=True, model=settings.model)
     limit = thrust_limit_rad(model)
     best: dict = {"cost": np.inf, "x": None, "mean": None, "n": 0}
 
@@ -94,7 +96,7 @@ def fit_gait(
             library=lib,
             model=model,
         )
-        mean = per_cycle.mean(axis=0)
+        mean = per_cycle[:, :3].mean(axis=0)
         r = scaled_residual(mean, target)
         c = float(r @ r) + penalty
         best["n"] += 1

@@ -1,11 +1,15 @@
-"""Measure the gait table (F, T, dH per gait, Figure 4 layout) from MuJoCo physics.
+"""Measure the gait table (F, T, dH per gait, Figure 4 layout) and each gait's energy per
+cycle from MuJoCo physics.
 
 Pure measurement, no file output. Each gait runs on its own fresh ``MjData``: the robot is
 placed at the gait's start pose (``start_pose``), walks ``settle_cycles`` cycles that are not
 measured, then ``cycles`` measured cycles; each cycle's (F, T, dH) is taken in the frame the
-robot had when that cycle began (SPEC §1). Servo-target noise (``noise_rad``) is drawn from
-``np.random.default_rng([seed, gait])``, so a gait's numbers do not depend on which other gaits
-run or on the number of worker processes: same seed → same numbers, bit for bit.
+robot had when that cycle began (SPEC §1), and its electrical energy is integrated from the
+servos' torques and speeds step by step (``calibration.energy``). The robot is the shipped
+ServoBot or a model file (``CalibrationSettings.model``, e.g. a ``servobot variant``).
+Servo-target noise (``noise_rad``) is drawn from ``np.random.default_rng([seed, gait])``, so a
+gait's numbers do not depend on which other gaits run or on the number of worker processes:
+same seed → same numbers, bit for bit.
 """
 
 from __future__ import annotations
@@ -19,9 +23,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from calibration.energy import HS311, EnergyMeter, ServoDatasheet
 from servo_mj.robot.bot import CycleResult, ServoBot
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
-from servo_mj.robot.model import load_robot
+from servo_mj.robot.model import ModelFile, load_robot
 from servo_mj.robot.settings import CALIBRATION_NOISE_RAD, PhysicsSettings
 
 
@@ -40,6 +45,9 @@ class CalibrationSettings:
     start_spacing_cm: float = 400.0
     """Start poses of the 16 gaits lie on a 4 × 4 grid this far apart, heading north (so
     recordings do not overlap)."""
+    model: str | None = None
+    """The robot: None = the shipped ServoBot (``models/servobot/scene.xml``), else the path
+    of a complete MJCF scene, e.g. a ``servobot variant`` file."""
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -51,10 +59,13 @@ class CalibrationSettings:
             "settle_cycles": self.settle_cycles,
             "seed": self.seed,
             "noise_rad": self.noise_rad,
+            "model_file": self.model,
         }
 
 
 DEFAULTS = CalibrationSettings()
+COLUMNS = ("F", "T", "dH", "energy_J")
+"""Columns of a measured cycle: F, T cm, dH deg, electrical energy J."""
 
 CycleCallback = Callable[[int, CycleResult, ServoBot], None]
 """``on_cycle(gait, result, bot)``, called after every measured cycle."""
@@ -79,10 +90,14 @@ def measure_gait(
     library: GaitLibrary | None = None,
     physics: PhysicsSettings | None = None,
     model: mujoco.MjModel | None = None,
+    model_file: ModelFile = None,
+    servo: ServoDatasheet = HS311,
     on_cycle: CycleCallback | None = None,
     on_frame: FrameCallback | None = None,
 ) -> np.ndarray:
-    """Per-cycle (F cm, T cm, dH deg) of ``cycles`` measured cycles of one gait, (cycles, 3)."""
+    """Per-cycle (F cm, T cm, dH deg, energy J) of ``cycles`` measured cycles of one gait,
+    (cycles, 4) (``COLUMNS``). ``model`` (compiled) wins over ``model_file`` (a path; None =
+    the shipped robot)."""
     g = check_gait(gait)
     if cycles < 1 or settle_cycles < 0:
         raise ValueError(f"need cycles >= 1 and settle_cycles >= 0, got {cycles}, {settle_cycles}")
@@ -90,7 +105,7 @@ def measure_gait(
         raise ValueError(f"noise must be a finite angle >= 0 rad, got {noise_rad}")
     physics = dataclasses.replace(physics or PhysicsSettings(), servo_noise_rad=float(noise_rad))
     if model is None:
-        model, _ = load_robot(scene=True)
+        model, _ = load_robot(scene=True, model=model_file)
     data = mujoco.MjData(model)
     bot = ServoBot(
         model, data, physics=physics, gaits=library, rng=np.random.default_rng([seed, g])
@@ -99,10 +114,12 @@ def measure_gait(
     frame_cb = None if on_frame is None else (lambda d: on_frame(g, d))
     for _ in range(settle_cycles):
         bot.run_gait(g, on_frame=frame_cb)
-    out = np.empty((cycles, 3))
+    meter = EnergyMeter(model, bot.actuators, servo)
+    out = np.empty((cycles, len(COLUMNS)))
     for k in range(cycles):
-        res = bot.run_gait(g, on_frame=frame_cb)
-        out[k] = res.ftdh
+        res = bot.run_gait(g, on_frame=frame_cb, on_step=meter.record)
+        out[k, :3] = res.ftdh
+        out[k, 3] = meter.take()
         if on_cycle is not None:
             on_cycle(g, res, bot)
     return out
@@ -114,10 +131,10 @@ def _measure_one(args: tuple) -> np.ndarray:
 
 
 def summarise(per_cycle: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and per-cycle standard deviation (ddof 0) per gait, each (16, 3); NaN rows for
-    gaits not measured."""
-    values = np.full((N_GAITS, 3), np.nan)
-    std = np.full((N_GAITS, 3), np.nan)
+    """Mean and per-cycle standard deviation (ddof 0) per gait, each (16, 4) (``COLUMNS``);
+    NaN rows for gaits not measured."""
+    values = np.full((N_GAITS, len(COLUMNS)), np.nan)
+    std = np.full((N_GAITS, len(COLUMNS)), np.nan)
     for g, a in per_cycle.items():
         values[g] = a.mean(axis=0)
         std[g] = a.std(axis=0)
@@ -136,7 +153,7 @@ def measure_all(
             arrays = list(pool.map(_measure_one, [(g, kwargs) for g in gs]))
         return dict(zip(gs, arrays, strict=True))
     if kwargs.get("model") is None:
-        kwargs["model"], _ = load_robot(scene=True)
+        kwargs["model"], _ = load_robot(scene=True, model=kwargs.get("model_file"))
     return {g: measure_gait(g, **kwargs) for g in gs}
 
 
@@ -149,12 +166,13 @@ def measure_gaits(
     noise_rad: float = DEFAULTS.noise_rad,
     library: GaitLibrary | None = None,
     physics: PhysicsSettings | None = None,
+    model_file: ModelFile = None,
     workers: int = 1,
     on_cycle: CycleCallback | None = None,
     on_frame: FrameCallback | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The measured gait table: (values (16, 3), std (16, 3)) of (F cm, T cm, dH deg), mean
-    and per-cycle standard deviation; rows of gaits not in ``gaits`` are NaN."""
+    """The measured gait table: (values (16, 4), std (16, 4)) of (F cm, T cm, dH deg,
+    energy J), mean and per-cycle standard deviation; rows of gaits not in ``gaits`` are NaN."""
     per_cycle = measure_all(
         gaits,
         workers=workers,
@@ -164,6 +182,7 @@ def measure_gaits(
         noise_rad=noise_rad,
         library=library,
         physics=physics,
+        model_file=model_file,
         on_cycle=on_cycle,
         on_frame=on_frame,
     )

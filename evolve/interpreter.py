@@ -170,8 +170,7 @@ class _Run:
         """Walk one cycle; kill zone → power empty → mark square. Returns an end code or None."""
         self.world.step(gait)
         x, y, h = self.world.pose()
-        if gait != self.s.still_gait:
-            self.power = self.power - self.s.gait_cost_v
+        self.power = self.power - self.p[geo.P_GAIT_COST + gait]
         self.steps += 1
         self.branches = 0
         self.track.append((x, y, h))

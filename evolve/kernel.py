@@ -41,11 +41,10 @@ from evolve.geometry import (
     P_BACKUP_GAIT,
     P_BACKUP_N,
     P_CHARGED,
-    P_COST,
     P_EMPTY,
+    P_GAIT_COST,
     P_LOW,
     P_MAX_BRANCH,
-    P_STILL,
     docked,
     killed,
     light_bits,
@@ -95,8 +94,7 @@ def _walk(gait, table, p, x, y, h, power, lo, hi, squares, inner):
     Returns (x, y, h, power, lo, hi, squares, inner, end) with end = −1 when the run goes on.
     """
     x, y, h = move(x, y, h, table[gait, 0], table[gait, 1], table[gait, 2])
-    if gait != int(p[P_STILL]):
-        power = power - p[P_COST]
+    power = power - p[P_GAIT_COST + gait]
     if killed(x, y, p):
         return x, y, h, power, lo, hi, squares, inner, END_KILL_ZONE
     if power < p[P_EMPTY]:

@@ -217,7 +217,7 @@ class _Pipeline:
                 validate(
                     read_chromosome(self.out / "coverage" / f"best_pop{k}.txt"), starts,
                     table=table, world=self.world, out_dir=sub, rrd=True, workers=self.workers,
-                    max_steps=s.validate_max_steps, on_run=self.on_run,
+                    max_steps=s.validate_max_steps, model=s.model, on_run=self.on_run,
                     meta={"finalist": k, "source": f"coverage/best_pop{k}.txt"},
                 )  # fmt: skip
             except ValidationError as exc:  # a bad finalist must not stop the others
@@ -242,9 +242,12 @@ def resolve_settings(
     quick: bool = False,
     seed: int | None = None,
     validate_starts: int | None = None,
+    model: str | Path | None = None,
 ) -> ReproduceSettings:
     """``settings`` (else paper scale, or ``quick_settings()``) with the overrides applied."""
     s = settings or (quick_settings() if quick else ReproduceSettings())
+    if model is not None:
+        s = dataclasses.replace(s, model=str(model))
     if seed is not None:
         s = dataclasses.replace(s, seed=int(seed))
     if validate_starts is not None:

@@ -24,9 +24,9 @@ from servobot.cli import calibrate as cli
 
 def test_measure_gaits_shape_nan_rows_and_stand_still() -> None:
     values, std = measure_gaits(gaits=(0, 7), cycles=2, seed=1)
-    assert values.shape == std.shape == (16, 3)
+    assert values.shape == std.shape == (16, 4)  # F, T, dH, energy
     assert np.all(np.isnan(values[[1, 2, 3, 15]]))
-    assert np.all(np.abs(values[7]) < 1e-3) and np.all(std[7] < 1e-3)
+    assert np.all(np.abs(values[7, :3]) < 1e-3) and np.all(std[7] < 1e-3)
     assert values[0, 0] > 8.0 and np.all(std[0] > 0.0)  # noise gives a real spread
 
 
@@ -53,7 +53,7 @@ def test_fit_reduces_the_error_of_a_detuned_gait() -> None:
     left, right, left_offset, right_offset, lift = lib.rows[2]
     detuned = lib.with_row(2, (left + 0.3, right, left_offset, right_offset, lift))  # less turn
     fs = FitSettings(cycles=2, max_evals=12, stop_residual=0.0)
-    before = measure_gait(2, cycles=2, library=detuned, seed=fs.seed).mean(axis=0)
+    before = measure_gait(2, cycles=2, library=detuned, seed=fs.seed)[:, :3].mean(axis=0)
     row, after, n = fit_gait(2, detuned, fs)
     assert n == 12 and len(row) == 5 and row[4] == lift
     cost = lambda v: float(np.sum(scaled_residual(v, PAPER_TABLE[2]) ** 2))  # noqa: E731
@@ -153,7 +153,7 @@ def test_shipped_gaits_match_figure4_on_a_seed_the_fit_never_saw() -> None:
     assert params["fit_settings"]["seed"] != UNSEEN_SEED
     settings = CalibrationSettings(seed=UNSEEN_SEED)
     values, _ = summarise(measure_all(workers=2, **settings.measure_kwargs()))
-    ok = within_tolerance(values)
+    ok = within_tolerance(values[:, :3])  # F, T, dH (the fourth column is energy)
     assert ok.all(), f"outside tolerance (gait, column): {np.argwhere(~ok).tolist()}"
 
 

@@ -160,9 +160,15 @@ class ServoBot:
 
     # --- gaits -----------------------------------------------------------------------------
     def run_gait(
-        self, gait: int, *, on_frame: Callable[[mujoco.MjData], None] | None = None
+        self,
+        gait: int,
+        *,
+        on_frame: Callable[[mujoco.MjData], None] | None = None,
+        on_step: Callable[[mujoco.MjData], None] | None = None,
     ) -> CycleResult:
-        """Run one cycle of ``gait``; ``on_frame(data)`` is called after every 100 ms frame.
+        """Run one cycle of ``gait``; ``on_frame(data)`` is called after every 100 ms frame,
+        ``on_step(data)`` after every physics step (then the frame's steps are taken one call
+        at a time, with the same result bit for bit).
 
         Raises ``PhysicsError`` (naming gait, cycle and time) on NaN, a MuJoCo warning,
         runaway speed or a flipped torso.
@@ -180,7 +186,12 @@ class ServoBot:
                 command = np.where(target != self._nominal, target + jitter, self._command)
             self._nominal, self._command = target, command
             d.ctrl[self.actuators] = command
-            mujoco.mj_step(m, d, self.substeps)
+            if on_step is None:
+                mujoco.mj_step(m, d, self.substeps)
+            else:
+                for _ in range(self.substeps):
+                    mujoco.mj_step(m, d)
+                    on_step(d)
             self._check(f"gait {g}", self.cycles, d.time)
             if on_frame is not None:
                 on_frame(d)

@@ -3,7 +3,8 @@
 A thin layer over ``evolve.stages``::
 
     servobot evolve navigation [--populations 5 --generations 1024 --population-size 256
-                                --seed 0 --table paper|PATH --out runs/evolve --resume]
+                                --seed 0 --table paper|PATH --power paper|table
+                                --out runs/evolve --resume]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
@@ -23,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from evolve.settings import GASettings, navigation_ga_settings
+from evolve.settings import GASettings, WorldSettings, navigation_ga_settings
 from servobot.progress import GenerationBars
 
 DEFAULT_OUT = Path("runs/evolve")
@@ -61,6 +62,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None, help="seed of every random draw (0)")
     p.add_argument(
         "--table", default="paper", help="gait table: 'paper' (Figure 4) or a calibration JSON"
+    )
+    p.add_argument(
+        "--power",
+        choices=("paper", "table"),
+        default="paper",
+        help="power model: 'paper' (0.0209 V per cycle, gait 7 free; default) or 'table' "
+        "(each gait costs the dV measured in --table)",
     )
     p.add_argument(
         "--out", type=Path, default=DEFAULT_OUT, help=f"run folder (default {DEFAULT_OUT})"
@@ -151,17 +159,18 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from evolve import stages
     from evolve.codec import ChromosomeError
-    from evolve.table import GaitTableError, load_table
+    from evolve.table import GaitTableError, load_table, with_power_model
 
     bars = GenerationBars(enabled=not args.no_progress)
     try:
         ga = ga_settings(args)
         table = load_table(args.table)
+        world = with_power_model(WorldSettings(), args.power, table)
         if args.stage == "navigation":
             if args.navigation is not None:
                 raise CliError("--navigation is an option of the coverage stage")
             summary = stages.run_navigation(
-                args.out, table=table, ga=ga, resume=args.resume, on_generation=bars
+                args.out, table=table, ga=ga, world=world, resume=args.resume, on_generation=bars
             )
             _print_navigation(summary, args.out)
         else:
@@ -172,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
                 navigation=navigation,
                 table=table,
                 ga=ga,
+                world=world,
                 resume=args.resume,
                 on_generation=bars,
             )

@@ -39,6 +39,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="validation starts per finalist (default 20; --quick 3)",
     )
+    p.add_argument(
+        "--model",
+        default=None,
+        metavar="FILE",
+        help="robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 
@@ -50,8 +56,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         settings = resolve_settings(
-            quick=args.quick, seed=args.seed, validate_starts=args.validate_starts
-        )
+            quick=args.quick, seed=args.seed, validate_starts=args.validate_starts,
+            model=args.model,
+        )  # fmt: skip
     except ReproduceError as exc:
         print(f"servobot reproduce: {exc}", file=sys.stderr)
         return 2

@@ -100,6 +100,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help="servo-target noise std in physics, rad (default: PhysicsSettings, 0 = off)",
     )
     p.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="robot model file in physics, e.g. from 'servobot variant' (default: shipped); "
+        "a --table PATH must have been calibrated on it",
+    )
+    p.add_argument(
         "--station-height",
         type=float,
         default=None,
@@ -144,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     world = WorldSettings()
     try:
         bits, starts = prepare(args, world)
-        table, warning = load_checked_table(args.table)
+        table, warning = load_checked_table(args.table, args.model)
     except (InputError, ValidationError) as exc:
         print(f"servobot validate: {exc}", file=sys.stderr)
         return 2
@@ -175,6 +183,7 @@ def main(argv: list[str] | None = None) -> int:
             workers=args.workers,
             max_steps=args.steps,
             seed=args.seed,
+            model=args.model,
             on_run=on_run,
             meta={
                 "chromosome_file": str(args.chromosome),
