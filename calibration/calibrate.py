@@ -32,6 +32,7 @@ from calibration.measure import (
 )
 from calibration.report import save_figure, within_tolerance
 from evolve.table import table_to_json
+from infra.executors import Executor
 from infra.io import atomic_write_json
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary
 from servo_mj.robot.model import model_sha256
@@ -64,10 +65,11 @@ def fitted_library(
     fit: FitSettings,
     *,
     workers: int = 1,
+    executor: Executor | None = None,
     log: Callable[[str], None] | None = None,
 ) -> GaitLibrary:
     """Fit the 15 walking gaits to Figure 4 and record the fit's provenance in ``meta``."""
-    fitted, report = fit_library(library, fit, workers=workers, log=log)
+    fitted, report = fit_library(library, fit, workers=workers, executor=executor, log=log)
     return GaitLibrary(
         fitted.rows,
         fitted.stride_rad,
@@ -90,6 +92,7 @@ def calibrate(
     fit: FitSettings | None = None,
     params_out: str | Path | None = None,
     workers: int = 1,
+    executor: Executor | None = None,
     model: mujoco.MjModel | None = None,
     on_frame: FrameCallback | None = None,
     on_cycle: CycleCallback | None = None,
@@ -99,17 +102,20 @@ def calibrate(
     """Measure the 16 gaits (after fitting them when ``fit`` is given) and write the table.
 
     ``library`` defaults to the shipped gait parameters; ``model`` to the calibration scene.
-    ``params_out``: a second place for the fitted parameters (with ``fit`` only). Raises
-    ``servo_mj.robot.bot.PhysicsError`` if the simulation blows up (nothing is written then).
+    ``params_out``: a second place for the fitted parameters (with ``fit`` only). The gaits
+    (and fits) are runs of ``executor`` (default ``make_executor(None, workers)``; with
+    callbacks, here). Raises ``infra.executors.BatchError`` naming the gaits whose simulation
+    blew up (nothing is written then).
     """
     out = Path(out)
     t0 = time.perf_counter()
     library = library if library is not None else GaitLibrary.load()
     if fit is not None:
-        library = fitted_library(library, fit, workers=workers, log=log)
+        library = fitted_library(library, fit, workers=workers, executor=executor, log=log)
     per_cycle = measure_all(
         range(N_GAITS),
         workers=workers,
+        executor=executor,
         model=model,
         on_frame=on_frame,
         on_cycle=on_cycle,

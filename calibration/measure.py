@@ -11,14 +11,15 @@ run or on the number of worker processes: same seed → same numbers, bit for bi
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import mujoco
 import numpy as np
 
+from infra.executors import Executor, SerialExecutor, make_executor, run_in_order, values_or_raise
 from servo_mj.robot.bot import CycleResult, ServoBot
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
 from servo_mj.robot.model import load_robot
@@ -89,8 +90,7 @@ def measure_gait(
     if not np.isfinite(noise_rad) or noise_rad < 0:
         raise ValueError(f"noise must be a finite angle >= 0 rad, got {noise_rad}")
     physics = dataclasses.replace(physics or PhysicsSettings(), servo_noise_rad=float(noise_rad))
-    if model is None:
-        model, _ = load_robot(scene=True)
+    model = model if model is not None else _calibration_scene()
     data = mujoco.MjData(model)
     bot = ServoBot(
         model, data, physics=physics, gaits=library, rng=np.random.default_rng([seed, g])
@@ -106,6 +106,12 @@ def measure_gait(
         if on_cycle is not None:
             on_cycle(g, res, bot)
     return out
+
+
+@functools.cache
+def _calibration_scene() -> mujoco.MjModel:
+    """The calibration scene, compiled once per process (each walk has its own ``MjData``)."""
+    return load_robot(scene=True)[0]
 
 
 def _measure_one(args: tuple) -> np.ndarray:
@@ -125,19 +131,24 @@ def summarise(per_cycle: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]
 
 
 def measure_all(
-    gaits: Iterable[int] = range(N_GAITS), *, workers: int = 1, **kwargs
+    gaits: Iterable[int] = range(N_GAITS),
+    *,
+    workers: int = 1,
+    executor: Executor | None = None,
+    **kwargs,
 ) -> dict[int, np.ndarray]:
-    """Per-cycle arrays of several gaits (``measure_gait`` keyword arguments), optionally in a
-    process pool of ``workers``. Callbacks force ``workers = 1``."""
+    """Per-cycle arrays of several gaits (``measure_gait`` keyword arguments), each gait one
+    run of ``executor`` (default ``make_executor(None, workers)``: 1 = here, k = a pool of k).
+    Callbacks (``on_cycle``, ``on_frame``) run the gaits here, one after another. Raises
+    ``infra.executors.BatchError`` naming each gait that failed (e.g. a ``PhysicsError``)."""
     gs = [check_gait(g) for g in gaits]
-    if workers > 1 and len(gs) > 1 and not kwargs.get("on_cycle") and not kwargs.get("on_frame"):
-        kwargs.pop("model", None)
-        with ProcessPoolExecutor(max_workers=min(workers, len(gs))) as pool:
-            arrays = list(pool.map(_measure_one, [(g, kwargs) for g in gs]))
-        return dict(zip(gs, arrays, strict=True))
-    if kwargs.get("model") is None:
-        kwargs["model"], _ = load_robot(scene=True)
-    return {g: measure_gait(g, **kwargs) for g in gs}
+    if kwargs.get("on_cycle") or kwargs.get("on_frame"):
+        executor = SerialExecutor()  # callbacks cannot cross processes
+    outcomes = run_in_order(
+        executor or make_executor(None, workers), _measure_one, [(g, kwargs) for g in gs]
+    )
+    arrays = values_or_raise(outcomes, [f"gait {g}" for g in gs])
+    return dict(zip(gs, arrays, strict=True))
 
 
 def measure_gaits(
@@ -150,6 +161,7 @@ def measure_gaits(
     library: GaitLibrary | None = None,
     physics: PhysicsSettings | None = None,
     workers: int = 1,
+    executor: Executor | None = None,
     on_cycle: CycleCallback | None = None,
     on_frame: FrameCallback | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -158,6 +170,7 @@ def measure_gaits(
     per_cycle = measure_all(
         gaits,
         workers=workers,
+        executor=executor,
         cycles=cycles,
         settle_cycles=settle_cycles,
         seed=seed,

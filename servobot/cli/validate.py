@@ -20,7 +20,9 @@ from tqdm import tqdm
 from evolve.codec import ChromosomeError, read_chromosome
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
+from infra.executors import make_executor
 from servo_mj.robot.settings import PhysicsSettings
+from servobot.cli.options import add_executor_option
 from servobot.validate import (
     ValidationError,
     check_chromosome,
@@ -85,8 +87,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         type=int,
         default=None,
         metavar="K",
-        help="processes (default: one per core; 1 = serial)",
+        help="processes or Ray CPUs (default: one per core)",
     )
+    add_executor_option(p, None, "process, serial with --workers 1")
     p.add_argument(
         "--steps", type=int, default=None, metavar="N", help="steps per run (default 600, SPEC §5)"
     )
@@ -156,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
             physics=physics,
             out_dir=args.out,
             rrd=args.rrd,
-            workers=args.workers,
+            executor=make_executor(args.executor, args.workers),
             max_steps=args.steps,
             seed=args.seed,
             on_run=on_run,
