@@ -65,6 +65,10 @@ class BatchError(RuntimeError):
         self.failures = failures
 
 
+class ExecutorError(RuntimeError):
+    """An executor cannot start: Ray missing, or its cluster cannot be joined."""
+
+
 def _call(fn: Callable[[Any], Any], item: Any) -> Outcome:
     try:
         return Ok(fn(item))
@@ -172,26 +176,36 @@ class RayExecutor:
         self.workers = workers
         self.address = address
 
-    def _ray(self) -> Any:
+    def connect(self) -> Any:
+        """Start or join Ray (once per process); returns the ``ray`` module. Raises
+        ``ExecutorError`` when Ray is not installed or the cluster cannot be joined."""
         try:
             import ray
         except ImportError as exc:
-            raise RuntimeError(
+            raise ExecutorError(
                 'executor "ray" needs Ray: pip install -e ".[ray]" (or pip install ray)'
             ) from exc
-        if not ray.is_initialized():
-            kwargs: dict[str, Any] = {"logging_level": logging.WARNING}
-            if self.address is None:
-                kwargs |= {"num_cpus": self.workers, "include_dashboard": False}
-            else:
-                kwargs["address"] = self.address
+        if ray.is_initialized():
+            return ray
+        kwargs: dict[str, Any] = {"logging_level": logging.WARNING}
+        if self.address is None:  # "local": a new instance, even if a cluster runs here
+            kwargs |= {"address": "local", "num_cpus": self.workers, "include_dashboard": False}
+        else:
+            kwargs["address"] = self.address
+        try:
             ray.init(**kwargs)
+        except ConnectionError as exc:
+            raise ExecutorError(
+                f"cannot join the Ray cluster at {self.address}: {exc}. Is 'ray start --head' "
+                "running there, and do this process and the cluster agree on RAY_AUTH_MODE "
+                "(docs/executors.md)?"
+            ) from exc
         return ray
 
     def imap(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Outcome]]:
         if not items:
             return
-        ray = self._ray()
+        ray = self.connect()
         task = ray.remote(num_cpus=1, max_retries=1)(_call)
         fn_ref = ray.put(fn)
         refs = {task.remote(fn_ref, item): i for i, item in enumerate(items)}
@@ -263,6 +277,7 @@ __all__ = [
     "WORKER_DIED",
     "BatchError",
     "Executor",
+    "ExecutorError",
     "Failed",
     "Ok",
     "Outcome",

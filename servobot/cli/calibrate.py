@@ -17,10 +17,10 @@ from calibration.calibrate import calibrate
 from calibration.fit import FitSettings
 from calibration.measure import DEFAULTS, CalibrationSettings
 from calibration.report import format_table
-from infra.executors import BatchError, make_executor
+from infra.executors import BatchError
 from servo_mj.robot.bot import PhysicsError
 from servo_mj.robot.gaits import PARAMS_JSON, GaitLibrary
-from servobot.cli.options import add_executor_option
+from servobot.cli.options import add_executor_option, executor_from_args
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         library=library,
         fit=fit,
         params_out=args.params_out,
-        executor=make_executor(args.executor, args.workers),
+        executor=executor_from_args(args, "servobot calibrate"),
         log=lambda s: print("  " + s, flush=True),
         command=command,
     )

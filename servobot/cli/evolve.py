@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 
 from evolve.settings import GASettings, navigation_ga_settings
-from infra.executors import Executor, make_executor
-from servobot.cli.options import add_executor_option
+from infra.executors import Executor
+from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.progress import GenerationBars
 
 DEFAULT_OUT = Path("runs/evolve")
@@ -91,7 +91,7 @@ def executor(args: argparse.Namespace) -> Executor | None:
     """Where the populations evolve: None = here (live progress), else an executor."""
     if args.workers is not None and args.workers < 1:
         raise CliError(f"--workers must be ≥ 1, got {args.workers}")
-    return None if args.executor == "serial" else make_executor(args.executor, args.workers)
+    return None if args.executor == "serial" else executor_from_args(args, "servobot evolve")
 
 
 def ga_settings(args: argparse.Namespace) -> GASettings:

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import sys
 
-from infra.executors import check_spec
+from infra.executors import Executor, ExecutorError, RayExecutor, check_spec, make_executor
 
 METAVAR = "serial|process|ray|ray:ADDRESS"
 
@@ -34,3 +35,17 @@ def add_executor_option(p: argparse.ArgumentParser, default: str | None, default
         "ray (a local Ray instance of --workers CPUs) or ray:ADDRESS (a running Ray cluster, "
         f"see docs/executors.md); default: {default_help}",
     )
+
+
+def executor_from_args(args: argparse.Namespace, prog: str) -> Executor:
+    """The executor of ``--executor`` and ``--workers`` (already checked); a Ray one joins
+    or starts Ray now, so that a cluster that cannot be reached stops the command before any
+    work (message, exit status 2)."""
+    ex = make_executor(args.executor, args.workers)
+    if isinstance(ex, RayExecutor):
+        try:
+            ex.connect()
+        except ExecutorError as exc:
+            print(f"{prog}: {exc}", file=sys.stderr)
+            raise SystemExit(2) from exc
+    return ex

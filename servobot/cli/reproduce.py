@@ -13,8 +13,7 @@ from tqdm import tqdm
 
 from evolve.population import StageError
 from evolve.table import GaitTableError
-from infra.executors import make_executor
-from servobot.cli.options import add_executor_option
+from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.progress import GenerationBars
 from servobot.reproduce import ReproduceError, reproduce, resolve_settings
 from servobot.reproduce_report import format_seconds
@@ -67,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
         res = reproduce(
             args.out,
             settings=settings,
-            executor=make_executor(args.executor, args.workers),
+            executor=executor_from_args(args, "servobot reproduce"),
             on_generation=bars,
             on_run=lambda _rec: runs.update(1),
         )

@@ -20,9 +20,8 @@ from tqdm import tqdm
 from evolve.codec import ChromosomeError, read_chromosome
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
-from infra.executors import make_executor
 from servo_mj.robot.settings import PhysicsSettings
-from servobot.cli.options import add_executor_option
+from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.validate import (
     ValidationError,
     check_chromosome,
@@ -159,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
             physics=physics,
             out_dir=args.out,
             rrd=args.rrd,
-            executor=make_executor(args.executor, args.workers),
+            executor=executor_from_args(args, "servobot validate"),
             max_steps=args.steps,
             seed=args.seed,
             on_run=on_run,
