@@ -46,7 +46,7 @@ from evolve.population import (
 from evolve.settings import GASettings, WorldSettings, navigation_ga_settings, settings_json
 from evolve.starts import coverage_starts, navigation_starts
 from evolve.table import GaitTable
-from infra.executors import BatchError, Executor, Failed, values_or_raise
+from infra.executors import BatchError, Executor, Failed, RayExecutor, values_or_raise
 from infra.io import atomic_write_json, atomic_write_text
 
 FIGURE10_START = (415.0, 252.0, 98.0)
@@ -172,6 +172,8 @@ def _run_populations(
 def _kernel_threads(executor: Executor) -> int:
     """numba threads per population when an executor runs populations side by side: this
     machine's cores shared out among its workers (one each on Ray, whose tasks take one CPU)."""
+    if isinstance(executor, RayExecutor):
+        return 1
     cores = os.cpu_count() or 1
     return max(1, cores // (getattr(executor, "workers", None) or cores))
 

@@ -3,17 +3,21 @@
 For each start, interleaved ``--repeats`` times, in this process:
 
 - **validation**: ``servobot.validate.run_start`` without recording (table run, then the
-  physics run through the interpreter, its sensors and the per-event record keeping), wall
-  time per physics step;
+  physics run through the interpreter, its sensors and the per-event record keeping), time
+  per physics step;
 - **validation, sensors every step**: the same with MuJoCo's sensor stage on at every physics
   step, as before the rangefinders were read on demand (the comparison that shows the gain);
 - **bare**: the same gait sequence (taken from that run) walked by ``ServoBot.run_gait`` in
   the calibration scene, with the same servo noise: the physics alone.
 
-Prints per-step costs and the ratio validation / bare; asserts nothing. The default controller
-(``evolve.bench.circling_population``) circles from the arena centre testing object and light
-sensors, with enough power that every run lasts ``--steps``; ``--chromosome FILE`` runs a
-16-gene chromosome from seeded coverage starts instead (runs end as the controller makes them).
+Times are CPU seconds of this process (``time.process_time``), which other jobs on the machine
+disturb far less than wall time; validation is single-threaded, so on a quiet machine they
+equal wall time. Prints per-step costs and the ratio validation / bare; asserts nothing.
+
+The default controller (``evolve.bench.circling_population``) circles from the arena centre
+testing object and light sensors, with enough power that every run lasts ``--steps``;
+``--chromosome FILE`` runs a 16-gene chromosome from seeded coverage starts instead (runs
+end as the controller makes them).
 
 Run: ``python -m servobot.validation_bench [--starts 2] [--steps 150] [--repeats 2]
 [--chromosome FILE] [--seed 0]``.
@@ -92,29 +96,29 @@ def gait_sequence(job: StartJob) -> tuple[list[int], np.ndarray]:
 
 
 def time_validation(job: StartJob, *, every_step_sensors: bool = False) -> tuple[float, dict]:
-    """(wall s, record) of ``run_start(job)``; optionally with the sensor stage on."""
+    """(CPU s, record) of ``run_start(job)``; optionally with the sensor stage on."""
     model = colony(job.world, job.arena).model
     flag = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
     before = model.opt.disableflags
     if every_step_sensors:
         model.opt.disableflags = before & ~flag
     try:
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         rec = run_start(job)
-        return time.perf_counter() - t0, rec
+        return time.process_time() - t0, rec
     finally:
         model.opt.disableflags = before
 
 
 def time_bare(gaits: list[int], seed: tuple[int, int]) -> float:
-    """Wall s of ``gaits`` walked in the calibration scene (servo noise as in validation)."""
+    """CPU s of ``gaits`` walked in the calibration scene (servo noise as in validation)."""
     m, d = load_robot(scene=True)
     bot = ServoBot(m, d, physics=PhysicsSettings(), rng=np.random.default_rng(seed))
     bot.place(0.0, 0.0, 0.0)
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     for g in gaits:
         bot.run_gait(g)
-    return time.perf_counter() - t0
+    return time.process_time() - t0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -144,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         n = len(gaits) * args.repeats
         ms = 1000.0 * walls / max(n, 1)
         print(
-            f"start {job.index} {tuple(round(v, 1) for v in job.start)}: {len(gaits)} steps; "
+            f"start {job.index} ({', '.join(f'{v:.1f}' for v in job.start)}): {len(gaits)} steps; "
             f"validation {ms[0]:.2f} ms/step (sensors every step {ms[1]:.2f}), "
             f"bare {ms[2]:.2f} ms/cycle; ratio {ms[0] / ms[2]:.3f} ({ms[1] / ms[2]:.3f})"
         )
@@ -152,11 +156,11 @@ def main(argv: list[str] | None = None) -> int:
         steps += n
     ms = 1000.0 * totals / max(steps, 1)
     print(
-        f"all: validation {ms[0]:.2f} ms/step, sensors every step {ms[1]:.2f}, bare same gaits "
-        f"{ms[2]:.2f} ms/cycle; ratio validation/bare {ms[0] / ms[2]:.3f} "
+        f"all (CPU time): validation {ms[0]:.2f} ms/step, sensors every step {ms[1]:.2f}, "
+        f"bare same gaits {ms[2]:.2f} ms/cycle; ratio validation/bare {ms[0] / ms[2]:.3f} "
         f"(sensors every step {ms[1] / ms[2]:.3f})"
     )
-    print(f"calibration walk, gait 0 in the bare scene: {bench_gait(60)[2]:.2f} ms/cycle")
+    print(f"calibration walk, gait 0 in the bare scene: {bench_gait(60)[2]:.2f} ms/cycle (wall)")
     print(f"load {os.getloadavg()[0]:.2f}")
     return 0
 
