@@ -7,7 +7,6 @@ One local Ray instance of 2 CPUs serves the whole module (it takes seconds to st
 from __future__ import annotations
 
 import json
-import logging
 import os
 import sys
 from pathlib import Path
@@ -49,13 +48,12 @@ STARTS = np.array([[420.0, 120.0, 80.0], [300.0, 300.0, 45.0]])
 @pytest.fixture(scope="module")
 def executors():
     """Serial, a pool of 2 processes and a local Ray of 2 CPUs (shut down after the module)."""
-    import ray
-
-    ray.init(num_cpus=2, include_dashboard=False, logging_level=logging.WARNING)
+    local_ray = RayExecutor(2)
+    ray = local_ray.connect()
     # Functions of this test module travel by value: Ray's workers cannot import it by name.
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
     try:
-        yield {"serial": SerialExecutor(), "process": ProcessExecutor(2), "ray": RayExecutor(2)}
+        yield {"serial": SerialExecutor(), "process": ProcessExecutor(2), "ray": local_ray}
     finally:
         ray.cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
         ray.shutdown()

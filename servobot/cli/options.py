@@ -6,9 +6,16 @@ import argparse
 import importlib.util
 import sys
 
-from infra.executors import Executor, ExecutorError, RayExecutor, check_spec, make_executor
+from infra.executors import (
+    EXECUTOR_SPECS,
+    Executor,
+    ExecutorError,
+    RayExecutor,
+    check_spec,
+    make_executor,
+)
 
-METAVAR = "serial|process|ray|ray:ADDRESS"
+METAVAR = "|".join(EXECUTOR_SPECS)
 
 
 def executor_spec(text: str) -> str:
