@@ -36,6 +36,7 @@ from calibration.measure import (
 from calibration.report import save_figure, within_tolerance
 from evolve.settings import WorldSettings
 from evolve.table import table_to_json
+from infra.executors import Executor
 from infra.io import atomic_write_json
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary
 from servo_mj.robot.model import ModelFile, model_label, model_sha256, scene_path
@@ -72,10 +73,11 @@ def fitted_library(
     fit: FitSettings,
     *,
     workers: int = 1,
+    executor: Executor | None = None,
     log: Callable[[str], None] | None = None,
 ) -> GaitLibrary:
     """Fit the 15 walking gaits to Figure 4 and record the fit's provenance in ``meta``."""
-    fitted, report = fit_library(library, fit, workers=workers, log=log)
+    fitted, report = fit_library(library, fit, workers=workers, executor=executor, log=log)
     return GaitLibrary(
         fitted.rows,
         fitted.stride_rad,
@@ -99,6 +101,7 @@ def calibrate(
     fit: FitSettings | None = None,
     params_out: str | Path | None = None,
     workers: int = 1,
+    executor: Executor | None = None,
     model: mujoco.MjModel | None = None,
     world: WorldSettings | None = None,
     on_frame: FrameCallback | None = None,
@@ -111,9 +114,10 @@ def calibrate(
     The robot is ``settings.model`` (None = the shipped ServoBot; a fit is made on it too);
     ``model``, an already compiled copy of it, saves compiling it again. ``library`` defaults to
     the shipped gait parameters. ``params_out``: a second place for the fitted parameters (with
-    ``fit`` only). ``world`` gives the capacitor bank that converts energy to voltage drop.
-    Raises ``servo_mj.robot.bot.PhysicsError`` if the simulation blows up, ``FileNotFoundError``
-    for a missing model file (nothing is written then).
+    ``fit`` only). ``world`` gives the capacitor bank that converts energy to voltage drop. The
+    gaits (and fits) are runs of ``executor`` (default ``make_executor(None, workers)``; with
+    callbacks, here). Raises ``infra.executors.BatchError`` naming the gaits whose simulation
+    blew up, ``FileNotFoundError`` for a missing model file (nothing is written then).
     """
     out = Path(out)
     t0 = time.perf_counter()
@@ -121,10 +125,11 @@ def calibrate(
     library = library if library is not None else GaitLibrary.load()
     if fit is not None:
         fit = dataclasses.replace(fit, model=settings.model)
-        library = fitted_library(library, fit, workers=workers, log=log)
+        library = fitted_library(library, fit, workers=workers, executor=executor, log=log)
     per_cycle = measure_all(
         range(N_GAITS),
         workers=workers,
+        executor=executor,
         model=model,
         on_frame=on_frame,
         on_cycle=on_cycle,

@@ -15,8 +15,8 @@ same seed → same numbers, bit for bit.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,9 +24,10 @@ import mujoco
 import numpy as np
 
 from calibration.energy import HS311, EnergyMeter, ServoDatasheet
+from infra.executors import Executor, SerialExecutor, make_executor, run_in_order, values_or_raise
 from servo_mj.robot.bot import CycleResult, ServoBot
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
-from servo_mj.robot.model import ModelFile, load_robot
+from servo_mj.robot.model import ModelFile, load_robot, model_sha256, scene_path
 from servo_mj.robot.settings import CALIBRATION_NOISE_RAD, PhysicsSettings
 
 
@@ -104,8 +105,7 @@ def measure_gait(
     if not np.isfinite(noise_rad) or noise_rad < 0:
         raise ValueError(f"noise must be a finite angle >= 0 rad, got {noise_rad}")
     physics = dataclasses.replace(physics or PhysicsSettings(), servo_noise_rad=float(noise_rad))
-    if model is None:
-        model, _ = load_robot(scene=True, model=model_file)
+    model = model if model is not None else calibration_scene(model_file)
     data = mujoco.MjData(model)
     bot = ServoBot(
         model, data, physics=physics, gaits=library, rng=np.random.default_rng([seed, g])
@@ -125,6 +125,17 @@ def measure_gait(
     return out
 
 
+def calibration_scene(model_file: ModelFile = None) -> mujoco.MjModel:
+    """The calibration scene of ``model_file`` (None = the shipped robot), compiled once per
+    process and file contents (each walk has its own ``MjData``)."""
+    return _compiled_scene(str(scene_path(model_file)), model_sha256(model_file))
+
+
+@functools.cache
+def _compiled_scene(path: str, sha256: str) -> mujoco.MjModel:
+    return load_robot(scene=True, model=path)[0]
+
+
 def _measure_one(args: tuple) -> np.ndarray:
     gait, kwargs = args
     return measure_gait(gait, **kwargs)
@@ -142,19 +153,24 @@ def summarise(per_cycle: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]
 
 
 def measure_all(
-    gaits: Iterable[int] = range(N_GAITS), *, workers: int = 1, **kwargs
+    gaits: Iterable[int] = range(N_GAITS),
+    *,
+    workers: int = 1,
+    executor: Executor | None = None,
+    **kwargs,
 ) -> dict[int, np.ndarray]:
-    """Per-cycle arrays of several gaits (``measure_gait`` keyword arguments), optionally in a
-    process pool of ``workers``. Callbacks force ``workers = 1``."""
+    """Per-cycle arrays of several gaits (``measure_gait`` keyword arguments), each gait one
+    run of ``executor`` (default ``make_executor(None, workers)``: 1 = here, k = a pool of k).
+    Callbacks (``on_cycle``, ``on_frame``) run the gaits here, one after another. Raises
+    ``infra.executors.BatchError`` naming each gait that failed (e.g. a ``PhysicsError``)."""
     gs = [check_gait(g) for g in gaits]
-    if workers > 1 and len(gs) > 1 and not kwargs.get("on_cycle") and not kwargs.get("on_frame"):
-        kwargs.pop("model", None)
-        with ProcessPoolExecutor(max_workers=min(workers, len(gs))) as pool:
-            arrays = list(pool.map(_measure_one, [(g, kwargs) for g in gs]))
-        return dict(zip(gs, arrays, strict=True))
-    if kwargs.get("model") is None:
-        kwargs["model"], _ = load_robot(scene=True, model=kwargs.get("model_file"))
-    return {g: measure_gait(g, **kwargs) for g in gs}
+    if kwargs.get("on_cycle") or kwargs.get("on_frame"):
+        executor = SerialExecutor()  # callbacks cannot cross processes
+    outcomes = run_in_order(
+        executor or make_executor(None, workers), _measure_one, [(g, kwargs) for g in gs]
+    )
+    arrays = values_or_raise(outcomes, [f"gait {g}" for g in gs])
+    return dict(zip(gs, arrays, strict=True))
 
 
 def measure_gaits(
@@ -168,6 +184,7 @@ def measure_gaits(
     physics: PhysicsSettings | None = None,
     model_file: ModelFile = None,
     workers: int = 1,
+    executor: Executor | None = None,
     on_cycle: CycleCallback | None = None,
     on_frame: FrameCallback | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -176,6 +193,7 @@ def measure_gaits(
     per_cycle = measure_all(
         gaits,
         workers=workers,
+        executor=executor,
         cycles=cycles,
         settle_cycles=settle_cycles,
         seed=seed,

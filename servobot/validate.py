@@ -313,12 +313,13 @@ def validate(
 
     ``table`` is a (16, 3) array or a ``GaitTable``; ``physics`` a ``PhysicsSettings`` (None =
     default; with ``servo_noise_rad`` > 0, run k draws its noise from
-    ``default_rng((seed, k))``). ``workers``: 1 = serial, None = one process per core
-    (ignored when ``executor`` is given). ``model``: the robot in physics (None = the shipped
-    ServoBot, else a model file such as a ``servobot variant``; check the table against it
-    with ``load_checked_table``). ``on_run(record)`` is called as each run finishes
-    (progress). Returns the report (and writes it into ``out_dir`` when given). Raises
-    ``ValidationError`` on bad input.
+    ``default_rng((seed, k))``). ``executor`` (``infra.executors.make_executor``) runs the
+    starts; without one, ``workers`` 1 runs them here and otherwise a pool of ``workers``
+    processes (None = one per core); records do not depend on where the runs ran. ``model``:
+    the robot in physics (None = the shipped ServoBot, else a model file such as a
+    ``servobot variant``; check the table against it with ``load_checked_table``).
+    ``on_run(record)`` is called as each run finishes (progress). Returns the report (and
+    writes it into ``out_dir`` when given). Raises ``ValidationError`` on bad input.
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
@@ -347,7 +348,7 @@ def validate(
         for k, p in enumerate(poses)
     ]
     t0 = time.perf_counter()
-    runs = _run_jobs(executor or make_executor(workers), jobs, on_run)
+    runs = _run_jobs(executor or make_executor(None, workers), jobs, on_run)
     wall = time.perf_counter() - t0
     tracks = {f"{w}_{r['index']}": t for r in runs for w, t in r.pop("tracks", {}).items()}
     report = {

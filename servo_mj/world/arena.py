@@ -255,6 +255,7 @@ def compile_arena(
     model = mujoco.MjModel.from_xml_string(xml, root.get_assets())
     if spec.scene_xml is not None:
         match_scene(model, mujoco.MjModel.from_xml_path(str(spec.scene_xml)))
+    _sensors.sensors_on_demand(model)
     data = mujoco.MjData(model)
     prefix = _robot_prefix(root)
     mujoco.mj_forward(model, data)

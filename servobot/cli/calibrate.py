@@ -18,8 +18,10 @@ from calibration.calibrate import calibrate
 from calibration.fit import FitSettings
 from calibration.measure import DEFAULTS, CalibrationSettings
 from calibration.report import format_energy, format_table
+from infra.executors import BatchError
 from servo_mj.robot.bot import PhysicsError
 from servo_mj.robot.gaits import PARAMS_JSON, GaitLibrary
+from servobot.cli.options import add_executor_option, executor_from_args
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -84,8 +86,9 @@ def _parser() -> argparse.ArgumentParser:
         "--workers",
         type=int,
         default=min(2, os.cpu_count() or 1),
-        help="processes for measuring/fitting gaits in parallel",
+        help="processes (or Ray CPUs) for measuring/fitting gaits in parallel",
     )
+    add_executor_option(p, None, "process, serial with --workers 1")
     return p
 
 
@@ -134,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
         library=library,
         fit=fit,
         params_out=params_out,
-        workers=args.workers,
+        executor=executor_from_args(args, "servobot calibrate"),
         log=lambda s: print("  " + s, flush=True),
         command=command,
     )
@@ -146,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
 
             with Recording(args.rrd, app_id="servobot-calibration") as rec:
                 res = calibrate(args.out, settings, **calibration_recorder(rec, settings), **kwargs)
-    except PhysicsError as exc:
+    except (PhysicsError, BatchError) as exc:
         print(f"servobot calibrate: physics failed: {exc}", file=sys.stderr)
         return 1
     except (OSError, ValueError) as exc:  # a missing or broken --model file

@@ -4,7 +4,8 @@ A thin layer over ``evolve.stages``::
 
     servobot evolve navigation [--populations 5 --generations 1024 --population-size 256
                                 --seed 0 --table paper|PATH --power paper|table
-                                --out runs/evolve --resume]
+                                --out runs/evolve --resume
+                                --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
@@ -25,6 +26,8 @@ from typing import Any
 import numpy as np
 
 from evolve.settings import GASettings, WorldSettings, navigation_ga_settings
+from infra.executors import Executor
+from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.progress import GenerationBars
 
 DEFAULT_OUT = Path("runs/evolve")
@@ -82,8 +85,21 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="coverage only: navigation section file (default DIR/navigation/best.txt)",
     )
+    add_executor_option(
+        p, "serial", "serial (one population after another: the kernel uses every core)"
+    )
+    p.add_argument(
+        "--workers", type=int, default=None, help="processes or Ray CPUs (default: one per core)"
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
+
+
+def executor(args: argparse.Namespace) -> Executor | None:
+    """Where the populations evolve: None = here (live progress), else an executor."""
+    if args.workers is not None and args.workers < 1:
+        raise CliError(f"--workers must be ≥ 1, got {args.workers}")
+    return None if args.executor == "serial" else executor_from_args(args, "servobot evolve")
 
 
 def ga_settings(args: argparse.Namespace) -> GASettings:
@@ -170,8 +186,9 @@ def main(argv: list[str] | None = None) -> int:
             if args.navigation is not None:
                 raise CliError("--navigation is an option of the coverage stage")
             summary = stages.run_navigation(
-                args.out, table=table, ga=ga, world=world, resume=args.resume, on_generation=bars
-            )
+                args.out, table=table, ga=ga, world=world, resume=args.resume,
+                on_generation=bars, executor=executor(args),
+            )  # fmt: skip
             _print_navigation(summary, args.out)
         else:
             nav_path = args.navigation or args.out / "navigation" / "best.txt"
@@ -184,6 +201,7 @@ def main(argv: list[str] | None = None) -> int:
                 world=world,
                 resume=args.resume,
                 on_generation=bars,
+                executor=executor(args),
             )
             _print_coverage(summary, args.out)
     except (CliError, stages.StageError, GaitTableError, ChromosomeError) as exc:

@@ -23,6 +23,7 @@ from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
 from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings
+from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.validate import (
     ValidationError,
     check_chromosome,
@@ -87,8 +88,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         type=int,
         default=None,
         metavar="K",
-        help="processes (default: one per core; 1 = serial)",
+        help="processes or Ray CPUs (default: one per core)",
     )
+    add_executor_option(p, None, "process, serial with --workers 1")
     p.add_argument(
         "--steps", type=int, default=None, metavar="N", help="steps per run (default 600, SPEC §5)"
     )
@@ -180,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
             arena=arena,
             out_dir=args.out,
             rrd=args.rrd,
-            workers=args.workers,
+            executor=executor_from_args(args, "servobot validate"),
             max_steps=args.steps,
             seed=args.seed,
             model=args.model,
