@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from evolve.codec import ChromosomeError, read_chromosome
+from evolve.codec import ChromosomeError, format_chromosome, read_chromosome
 from evolve.interpreter import MODES, StepEvent
 from evolve.settings import WorldSettings
 from evolve.table import GaitTableError, load_table
@@ -113,16 +113,20 @@ def main(argv: list[str] | None = None, *, stdout: TextIO | None = None) -> int:
         if args.rrd is None:
             res = trace(bits, start, on_event=emit, **kw)
         else:
-            from servobot.recording import Recording  # lazy: rerun only when asked for
+            from servobot.recording import RunRecorder  # lazy: rerun only when asked for
 
-            with Recording(args.rrd, app_id="servobot-trace") as rec:
-                rec.log_arena(world)
+            props = {"chromosome": {"text": format_chromosome(bits), "file": str(args.chromosome)},
+                     "start": dict(zip(("x_cm", "y_cm", "heading_deg"), start, strict=True)),
+                     "mode": mode, "gait_table": table.source}  # fmt: skip
+            with RunRecorder(args.rrd, world=world, start=start, ghost=True, properties=props,
+                             name=f"trace/{args.chromosome.stem}") as rec:  # fmt: skip
 
                 def emit_and_record(e: StepEvent) -> None:
                     emit(e)
-                    rec.log_event(e, world_name="table")
+                    rec.table_event(e)
 
                 res = trace(bits, start, on_event=emit_and_record, **kw)
+                rec.close({"table": res})
         if not args.json:
             out.write(summary_line(res) + "\n")
             if args.rrd is not None:
