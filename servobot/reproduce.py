@@ -148,7 +148,7 @@ class _Pipeline:
 
         def body() -> dict[str, Any]:
             settings = self.s.calibration()
-            with Recording(folder / RECORDING_FILE, name="calibration") as rec:
+            with Recording.for_calibration(folder / RECORDING_FILE) as rec:
                 res = calibrate(
                     folder, settings, command="servobot reproduce (stage 1)",
                     **calibration_recorder(rec, settings),

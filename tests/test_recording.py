@@ -421,7 +421,7 @@ def test_calibration_walks_side_by_side_without_jumps(tmp_path) -> None:
 
     settings = CalibrationSettings(cycles=1, settle_cycles=1)
     path = tmp_path / "calibration.rrd"
-    with Recording(path, name="calibration") as rec:
+    with Recording.for_calibration(path) as rec:
         res = calibrate(tmp_path, settings, **calibration_recorder(rec, settings))
         log_calibration_result(rec, res)
     rrd = Rrd(path)

@@ -133,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             from servobot.recording import Recording, calibration_recorder, log_calibration_result
 
-            with Recording(args.rrd, name="calibration") as rec:
+            with Recording.for_calibration(args.rrd) as rec:
                 res = calibrate(args.out, settings, **calibration_recorder(rec, settings), **kwargs)
                 log_calibration_result(rec, res)
     except PhysicsError as exc:

@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from evolve.codec import ChromosomeError, format_chromosome, read_chromosome
+from evolve.codec import ChromosomeError, read_chromosome
 from evolve.interpreter import MODES, StepEvent
 from evolve.settings import WorldSettings
 from evolve.table import GaitTableError, load_table
@@ -115,11 +115,8 @@ def main(argv: list[str] | None = None, *, stdout: TextIO | None = None) -> int:
         else:
             from servobot.recording import RunRecorder  # lazy: rerun only when asked for
 
-            props = {"chromosome": {"text": format_chromosome(bits), "file": str(args.chromosome)},
-                     "start": dict(zip(("x_cm", "y_cm", "heading_deg"), start, strict=True)),
-                     "mode": mode, "gait_table": table.source}  # fmt: skip
-            with RunRecorder(args.rrd, world=world, start=start, ghost=True, properties=props,
-                             name=f"trace/{args.chromosome.stem}") as rec:  # fmt: skip
+            with RunRecorder.for_trace(args.rrd, bits, start, mode=mode, table=table,
+                                       world=world, source=args.chromosome) as rec:  # fmt: skip
 
                 def emit_and_record(e: StepEvent) -> None:
                     emit(e)

@@ -61,12 +61,9 @@ def sensor_wedges(world: WorldSettings, s: RecordingSettings) -> dict[int, np.nd
 
 def event_line(event: Any) -> str:
     """The log line of one event: ``step, gene, instr, kind: text``."""
-    gene, instr = getattr(event, "gene", ""), getattr(event, "instruction", "")
-    line = f"step {int(event.step):4d} gene {gene} instr {instr} {event.kind}: {event.text}"
-    gait = getattr(event, "gait", -1)
-    if gait is not None and gait >= 0 and "gait" not in event.text:
-        line += f" (gait {gait})"
-    return line
+    e = event
+    line = f"step {int(e.step):4d} gene {e.gene} instr {e.instruction} {e.kind}: {e.text}"
+    return line + (f" (gait {e.gait})" if e.gait >= 0 and "gait" not in e.text else "")
 
 
 class WorldEvents:
@@ -93,23 +90,23 @@ class WorldEvents:
         self.last = (float(x_cm), float(y_cm))
 
     def add(self, event: Any, times: Times) -> None:
+        """One ``evolve.interpreter.StepEvent`` at ``times``."""
         x, y, h = (float(v) for v in event.pose)
-        mode = getattr(event, "mode", 0)
         self.main.add(
             times,
             pose=(x, y, h),
-            power=float(getattr(event, "power", np.nan)),
-            sensors=int(getattr(event, "sensors", 0) or 0),
-            mode=float(MODES.get(mode, 0)) if isinstance(mode, str) else float(mode),
-            squares=float(getattr(event, "squares", 0) or 0),
+            power=float(event.power),
+            sensors=int(event.sensors),
+            mode=float(MODES.get(event.mode, 0)),
+            squares=float(event.squares),
             text=event_line(event),
             level="WARN" if event.kind in _WARN_KINDS else "INFO",
         )
         if self.last is not None and self.last != (x, y):
             self.moves.add(times, seg=(self.last, (x, y)))
         self.last = (x, y)
-        new = getattr(event, "new_square", -1)
-        if new is not None and new >= 0 and int(new) not in self.reached:
+        new = event.new_square
+        if new >= 0 and int(new) not in self.reached:
             self.reached.add(int(new))
             self.squares.add(times, square=int(new))
 

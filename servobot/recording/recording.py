@@ -92,6 +92,11 @@ class Recording:
         self.contents = Contents()
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
+    @classmethod
+    def for_calibration(cls, path: str | Path) -> Recording:
+        """A calibration's recording (see ``calibration_recorder``)."""
+        return cls(path, name="calibration", app_id="servobot-calibration")
+
     # ----------------------------------------------------------------------------- context
     def __enter__(self) -> Recording:
         return self

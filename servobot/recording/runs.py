@@ -54,6 +54,7 @@ class RunRecorder:
     """Records one run into ``path``: the arena, the start, properties, then the hooks.
 
     ``physics`` (default ``PhysicsSettings()``) sets the table world's nominal times.
+    ``app_id``: recordings of one kind share it, and with it the viewer's layout.
     ``ghost``: draw the robot at the table world's pose (in physics runs the ghost is drawn
     from the physics robot by ``attach_physics``; here from the bare robot, standing).
     """
@@ -66,12 +67,13 @@ class RunRecorder:
         start: Sequence[float],
         physics: PhysicsSettings | None = None,
         name: str | None = None,
+        app_id: str = "servobot-run",
         properties: dict[str, Any] | None = None,
         robot: str = DEFAULT_ROBOT,
         ghost: bool = False,
         settings: RecordingSettings | None = None,
     ) -> None:
-        self.rec = Recording(path, name=name or run_name(path), settings=settings)
+        self.rec = Recording(path, name=name or run_name(path), app_id=app_id, settings=settings)
         self.robot = robot
         self.physics = physics or PhysicsSettings()
         self._pw: Any = None
@@ -89,8 +91,22 @@ class RunRecorder:
         physics = job.physics or PhysicsSettings()
         return cls(
             job.rrd_path, world=job.world, start=job.start, physics=physics,
-            properties=validation_properties(job, physics),
+            app_id="servobot-validate", properties=validation_properties(job, physics),
         )  # fmt: skip
+
+    @classmethod
+    def for_trace(
+        cls, path: str | Path, bits: np.ndarray, start: Sequence[float], *, mode: str,
+        table: Any, world: WorldSettings, source: str | Path,
+    ) -> RunRecorder:  # fmt: skip
+        """The recorder of a table-only run (``servobot trace``), with the ghost robot."""
+        props = {
+            "chromosome": {"text": format_chromosome(np.asarray(bits)), "file": str(source)},
+            "start": dict(zip(("x_cm", "y_cm", "heading_deg"), start, strict=True)),
+            "mode": mode, "gait_table": getattr(table, "source", "array"),
+        }  # fmt: skip
+        return cls(path, world=world, start=start, name=f"trace/{Path(source).stem}",
+                   app_id="servobot-trace", properties=props, ghost=True)  # fmt: skip
 
     def __enter__(self) -> RunRecorder:
         return self
@@ -132,10 +148,9 @@ class RunRecorder:
 
     def error(self, text: str) -> None:
         """A physics failure: an ERROR line at the step under way."""
-        t = None if self._pw is None else self._pw.t_s
-        if t is None:
-            t = step_time_s(self._step + 1, self.physics)
-        self.rec.log_error(text, step=self._step + 1, t_s=t, robot=self.robot)
+        pw, step = self._pw, self._step + 1
+        t = step_time_s(step, self.physics) if pw is None else pw.t_s
+        self.rec.log_error(text, step=step, t_s=t, robot=self.robot)
 
     def close(self, record: dict[str, Any] | None = None, *, save: bool = True) -> None:
         """Save the file; ``record`` (the run's result) becomes the ``result`` property."""
