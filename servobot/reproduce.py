@@ -40,7 +40,7 @@ from evolve.starts import coverage_starts
 from evolve.table import GaitTable, load_table
 from infra.executors import Executor, make_executor
 from infra.io import atomic_write_json, atomic_write_text
-from servobot.recording import Recording, calibration_recorder
+from servobot.recording import Recording, calibration_recorder, log_calibration_result
 from servobot.reproduce_report import write_report
 from servobot.reproduce_settings import (
     STAGES,
@@ -149,11 +149,12 @@ class _Pipeline:
 
         def body() -> dict[str, Any]:
             settings = self.s.calibration()
-            with Recording(folder / RECORDING_FILE, app_id="servobot-calibration") as rec:
-                calibrate(
+            with Recording.for_calibration(folder / RECORDING_FILE) as rec:
+                res = calibrate(
                     folder, settings, command="servobot reproduce (stage 1)",
                     **calibration_recorder(rec, settings),
                 )  # fmt: skip
+                log_calibration_result(rec, res)
             return {}
 
         self.stage("calibration", body, [folder / TABLE_FILE, folder / FIGURE_FILE])

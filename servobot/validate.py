@@ -189,15 +189,14 @@ def run_start(job: StartJob) -> dict[str, Any]:
     }
     rec = None
     if job.rrd_path is not None:
-        from servobot.recording import Recording
+        from servobot.recording import RunRecorder
 
-        rec = Recording(job.rrd_path, app_id="servobot-validate")
-        rec.log_arena(job.world)
+        rec = RunRecorder.for_validation(job)
     tracks: dict[str, np.ndarray] = {}
     try:
         t0 = time.perf_counter()
         table_world = TableWorld(job.table, x, y, h, job.world)
-        on_table = None if rec is None else (lambda e: rec.log_event(e, world_name="table"))
+        on_table = None if rec is None else rec.table_event
         res = run(
             job.bits, table_world, mode=MODE, settings=job.world,
             max_steps=job.max_steps, on_event=on_table,
@@ -212,15 +211,15 @@ def run_start(job: StartJob) -> dict[str, Any]:
                 x, y, h, world=job.world, arena=job.arena, physics=job.physics,
                 robot=None if job.model is None else default_robot(job.model),
                 rng=np.random.default_rng((job.seed, job.index)),
-                on_frame=None if rec is None else _state_logger(rec),
+                on_frame=None if rec is None else rec.on_frame,
             )  # fmt: skip
             if rec is not None:
-                rec.log_robot_model(pw.model, prefix=pw.prefix)
+                rec.attach_physics(pw)
 
             def on_physics(e: Any) -> None:
                 last.update(steps=e.step, squares=e.squares, pose=[float(v) for v in e.pose])
                 if rec is not None:
-                    rec.log_event(e, world_name="physics", t_s=pw.t_s)
+                    rec.physics_event(e)
 
             res = run(
                 job.bits, pw, mode=MODE, settings=job.world,
@@ -231,18 +230,13 @@ def run_start(job: StartJob) -> dict[str, Any]:
         except Exception as exc:  # noqa: BLE001 - a physics failure is this run's record
             out["error"] = f"{type(exc).__name__}: {exc}"
             out["physics_partial"] = dict(last, wall_s=round(time.perf_counter() - t0, 4))
+            if rec is not None:
+                rec.error(out["error"])
     finally:
         if rec is not None:
-            rec.close()
+            rec.close(out)
     out["tracks"] = tracks
     return out
-
-
-def _state_logger(rec: Any) -> Callable[[Any], None]:
-    def log(frame: Any) -> None:
-        rec.log_robot_state(frame.data, t_s=frame.t_s, prefix=frame.prefix)
-
-    return log
 
 
 def _jsonable(obj: Any) -> Any:

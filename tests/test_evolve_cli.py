@@ -236,5 +236,8 @@ def test_trace_rrd_records_the_table_run(forward, tmp_path, capsys):
         else:
             rows[path] = rows.get(path, 0) + chunk.num_rows
     assert "/world/arena/squares" in static and "/world/arena/kill_zone" in static
-    assert rows["/world/track/table"] == 6  # 5 steps + the end event
-    assert rows["/world/squares/table"] == 2  # squares 55 and 56 newly reached
+    table = "/world/robots/servobot/table"
+    assert rows[f"{table}/pose"] == 6  # 5 steps + the end event
+    assert rows[f"{table}/track"] == 5  # one segment per step, from the start
+    assert rows[f"{table}/squares"] == 2  # squares 55 and 56 newly reached
+    assert any(p.startswith(f"{table}/pose/ghost/torso/geoms/") for p in static)

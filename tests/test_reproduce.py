@@ -69,7 +69,8 @@ def test_tiny_run_writes_every_stage(run_dir: tuple[Path, dict]) -> None:
     # A validation recording holds both worlds' tracks.
     paths = {c.entity_path for c in rr.chunk.RrdReader(out / "validation/pop0/run0.rrd")
              .stream().collect().stream()}  # fmt: skip
-    assert {"/world/track/table", "/world/track/physics", "/world/robot/torso"} <= paths
+    robot = "/world/robots/servobot"
+    assert {f"{robot}/table/track", f"{robot}/physics/track", f"{robot}/bodies/torso"} <= paths
 
 
 def test_report_embeds_figures_and_lists_recordings(run_dir: tuple[Path, dict]) -> None:

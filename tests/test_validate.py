@@ -148,10 +148,11 @@ def test_cli_rrd_writes_one_recording_per_run(chromosome, tmp_path):
     for chunk in rr.chunk.RrdReader(out / "run0.rrd").stream().collect().stream():
         if not chunk.is_static:
             rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.num_rows
-    # Both worlds' tracks, one row per step, and the robot's bodies every control frame.
-    assert rows["/world/track/physics"] == rows["/world/track/table"] >= 4
-    assert rows["/world/robot/torso"] >= 4 * 8
-    assert "/plots/sensors/physics/object_left" in rows
+    # Both worlds' poses, one row per event, and the robot's bodies every control frame.
+    robot = "/world/robots/servobot"
+    assert rows[f"{robot}/physics/pose"] == rows[f"{robot}/table/pose"] >= 4
+    assert rows[f"{robot}/bodies/torso"] >= 4 * 8
+    assert "/plots/sensors/servobot/physics/object_left" in rows
 
 
 @pytest.mark.parametrize(

@@ -145,10 +145,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.rrd is None:
             res = calibrate(args.out, settings, **kwargs)
         else:
-            from servobot.recording import Recording, calibration_recorder
+            from servobot.recording import Recording, calibration_recorder, log_calibration_result
 
-            with Recording(args.rrd, app_id="servobot-calibration") as rec:
+            with Recording.for_calibration(args.rrd) as rec:
                 res = calibrate(args.out, settings, **calibration_recorder(rec, settings), **kwargs)
+                log_calibration_result(rec, res)
     except (PhysicsError, BatchError) as exc:
         print(f"servobot calibrate: physics failed: {exc}", file=sys.stderr)
         return 1

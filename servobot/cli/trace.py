@@ -113,16 +113,17 @@ def main(argv: list[str] | None = None, *, stdout: TextIO | None = None) -> int:
         if args.rrd is None:
             res = trace(bits, start, on_event=emit, **kw)
         else:
-            from servobot.recording import Recording  # lazy: rerun only when asked for
+            from servobot.recording import RunRecorder  # lazy: rerun only when asked for
 
-            with Recording(args.rrd, app_id="servobot-trace") as rec:
-                rec.log_arena(world)
+            with RunRecorder.for_trace(args.rrd, bits, start, mode=mode, table=table,
+                                       world=world, source=args.chromosome) as rec:  # fmt: skip
 
                 def emit_and_record(e: StepEvent) -> None:
                     emit(e)
-                    rec.log_event(e, world_name="table")
+                    rec.table_event(e)
 
                 res = trace(bits, start, on_event=emit_and_record, **kw)
+                rec.close({"table": res})
         if not args.json:
             out.write(summary_line(res) + "\n")
             if args.rrd is not None:
