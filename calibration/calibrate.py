@@ -4,7 +4,11 @@ The library function under ``servobot calibrate`` and the pipeline's first stage
 ``out/gait_table.json`` (``evolve.table.table_to_json`` plus provenance: model hash, MuJoCo
 version, settings, gait parameters), ``out/figure4.png`` and, with a fit,
 ``out/gait_params.json`` (and ``params_out``, e.g. the shipped file). Every file is written
-atomically once all physics has finished, so a failed run loses nothing already written.
+atomically once all physics has finished, so a failed or interrupted run loses nothing
+already written. Before any physics, the sizes are checked against the machine
+(``calibration_need``) and ``out`` is taken as a run folder (``infra.rundir``: a lock, and
+``settings.json`` recording the settings and gait parameters; a folder holding a calibration
+made otherwise is refused unless ``force``, which deletes only ``CALIBRATION_FILES``).
 
 Recording is a consumer of the callbacks ``on_frame(gait, data)`` and
 ``on_cycle(gait, result, bot)``; with either, the gaits run one after another in this process.
@@ -32,7 +36,9 @@ from calibration.measure import (
 )
 from calibration.report import save_figure, within_tolerance
 from evolve.table import table_to_json
-from infra.io import atomic_write_json
+from infra.bounds import LIMITS, Need, check_need
+from infra.io import atomic_write_json, check_output_file
+from infra.rundir import run_folder
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary
 from servo_mj.robot.model import model_sha256
 from servo_mj.robot.settings import PhysicsSettings
@@ -40,6 +46,8 @@ from servo_mj.robot.settings import PhysicsSettings
 TABLE_FILE = "gait_table.json"
 FIGURE_FILE = "figure4.png"
 PARAMS_FILE = "gait_params.json"
+CALIBRATION_FILES = (TABLE_FILE, FIGURE_FILE, PARAMS_FILE)
+"""What a calibration writes into its folder besides ``settings.json``."""
 
 
 @dataclass(frozen=True)
@@ -82,6 +90,18 @@ def fitted_library(
     )
 
 
+def calibration_need(
+    settings: CalibrationSettings, fit: FitSettings | None, workers: int = 1
+) -> Need:
+    """Optimistic wall time of a calibration (16 gaits, and 15 fitted gaits × ``max_evals``
+    evaluations with a fit); memory is one physics process per worker."""
+    cycles = N_GAITS * (settings.settle_cycles + settings.cycles)
+    if fit is not None:
+        cycles += (N_GAITS - 1) * fit.max_evals * (fit.settle_cycles + fit.cycles)
+    speed = LIMITS.physics_cycles_per_s * max(1, workers)
+    return Need(max(1, workers) * LIMITS.physics_process_bytes, cycles / speed)
+
+
 def calibrate(
     out: str | Path,
     settings: CalibrationSettings = DEFAULTS,
@@ -95,16 +115,37 @@ def calibrate(
     on_cycle: CycleCallback | None = None,
     log: Callable[[str], None] | None = None,
     command: str = "",
+    force: bool = False,
 ) -> CalibrationResult:
     """Measure the 16 gaits (after fitting them when ``fit`` is given) and write the table.
 
     ``library`` defaults to the shipped gait parameters; ``model`` to the calibration scene.
     ``params_out``: a second place for the fitted parameters (with ``fit`` only). Raises
-    ``servo_mj.robot.bot.PhysicsError`` if the simulation blows up (nothing is written then).
+    ``infra.errors.InputError`` subclasses for sizes the machine cannot give or an unusable
+    ``out``/``params_out`` (before any physics), ``servo_mj.robot.bot.PhysicsError`` if the
+    simulation blows up (nothing is written then).
     """
-    out = Path(out)
-    t0 = time.perf_counter()
     library = library if library is not None else GaitLibrary.load()
+    check_need(calibration_need(settings, fit, workers), "the calibration's cycles and --fit-evals")
+    if fit is not None and params_out is not None:
+        check_output_file(params_out, option="--params-out")
+    record = {
+        "CalibrationSettings": settings.to_dict(),
+        "FitSettings": None if fit is None else fit.__dict__ | {"step": list(fit.step)},
+        "gait_params": library.to_dict(),
+    }
+    with run_folder(out, record, owned=CALIBRATION_FILES, resumable=False, force=force):
+        return _measure(Path(out), settings, library, fit, params_out, workers, model,
+                        on_frame, on_cycle, log, command)  # fmt: skip
+
+
+def _measure(
+    out: Path, settings: CalibrationSettings, library: GaitLibrary, fit: FitSettings | None,
+    params_out: str | Path | None, workers: int, model: mujoco.MjModel | None,
+    on_frame: FrameCallback | None, on_cycle: CycleCallback | None,
+    log: Callable[[str], None] | None, command: str,
+) -> CalibrationResult:  # fmt: skip
+    t0 = time.perf_counter()
     if fit is not None:
         library = fitted_library(library, fit, workers=workers, log=log)
     per_cycle = measure_all(
@@ -158,4 +199,11 @@ def table_document(
     )
 
 
-__all__ = ["CalibrationResult", "calibrate", "fitted_library", "table_document"]
+__all__ = [
+    "CALIBRATION_FILES",
+    "CalibrationResult",
+    "calibrate",
+    "calibration_need",
+    "fitted_library",
+    "table_document",
+]

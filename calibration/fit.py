@@ -13,7 +13,6 @@ ctrlrange.
 from __future__ import annotations
 
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +21,7 @@ from scipy.optimize import minimize
 from calibration.measure import measure_gait
 from calibration.report import TOLERANCE
 from evolve.table import PAPER_TABLE
+from infra.executors import process_pool, spawning
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
 from servo_mj.robot.model import load_robot, thrust_limit_rad
 from servo_mj.robot.settings import CALIBRATION_NOISE_RAD
@@ -137,9 +137,11 @@ def fit_library(
     todo = [g for g in (gaits if gaits is not None else range(N_GAITS)) if g not in FIXED_GAITS]
     jobs = [(g, library, settings) for g in todo]
     if workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+        with process_pool(min(workers, len(jobs))) as pool:
+            with spawning():
+                fitted = pool.map(_fit_one, jobs)
             results = []
-            for res in pool.map(_fit_one, jobs):
+            for res in fitted:
                 results.append(res)
                 if log:
                     log(f"gait {res[0]}: {res[3]} evaluations, measured {np.round(res[2], 2)}")

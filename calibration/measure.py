@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import mujoco
 import numpy as np
 
+from infra.executors import process_pool, spawning
 from servo_mj.robot.bot import CycleResult, ServoBot
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
 from servo_mj.robot.model import load_robot
@@ -132,8 +132,10 @@ def measure_all(
     gs = [check_gait(g) for g in gaits]
     if workers > 1 and len(gs) > 1 and not kwargs.get("on_cycle") and not kwargs.get("on_frame"):
         kwargs.pop("model", None)
-        with ProcessPoolExecutor(max_workers=min(workers, len(gs))) as pool:
-            arrays = list(pool.map(_measure_one, [(g, kwargs) for g in gs]))
+        with process_pool(min(workers, len(gs))) as pool:
+            with spawning():
+                results = pool.map(_measure_one, [(g, kwargs) for g in gs])
+            arrays = list(results)
         return dict(zip(gs, arrays, strict=True))
     if kwargs.get("model") is None:
         kwargs["model"], _ = load_robot(scene=True)

@@ -4,16 +4,24 @@
 ``outcome`` is ``Ok(value)`` or ``Failed(message)``. A run that raises becomes ``Failed`` and
 the others go on; a worker process that dies (segfault, out of memory) fails the runs it had
 not returned, never the whole batch.
+
+Interrupts: worker processes ignore Ctrl-C from birth (they are started inside
+``spawning()``); the main process gets the ``KeyboardInterrupt``, cancels the runs not
+started and terminates the workers before it re-raises (``process_pool``), so Ctrl-C stops a
+batch at once, with no traceback from any worker.
 """
 
 from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import signal
+import threading
 import traceback
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -41,6 +49,55 @@ def _call(fn: Callable[[Any], Any], item: Any) -> Outcome:
         return Ok(fn(item))
     except Exception as exc:  # noqa: BLE001 - every failure becomes that run's record
         return Failed(f"{type(exc).__name__}: {exc}", traceback.format_exc())
+
+
+def _ignore_interrupts() -> None:
+    """Worker initializer: Ctrl-C is the main process's to handle; SIGTERM (from ``_stop``)
+    ends a worker at once, even one forked from a process with its own SIGTERM handler."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@contextmanager
+def spawning() -> Iterator[None]:
+    """Start worker processes (submit to a pool) in this block: they inherit an ignored
+    SIGINT from birth, before their initializer runs. A Ctrl-C within the block is dropped."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old if old is not None else signal.SIG_DFL)
+
+
+def _stop(pool: ProcessPoolExecutor, timeout_s: float = 5.0) -> None:
+    """Cancel the runs not started and terminate the workers (SIGTERM, then SIGKILL)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        p.terminate()
+    for p in procs:
+        p.join(timeout_s)
+        if p.is_alive():
+            p.kill()
+            p.join(timeout_s)
+
+
+@contextmanager
+def process_pool(workers: int, mp_context: Any = None) -> Iterator[ProcessPoolExecutor]:
+    """A ``ProcessPoolExecutor`` whose workers ignore Ctrl-C and are terminated when the block
+    ends with an exception (Ctrl-C, SIGTERM as ``KeyboardInterrupt``, an error)."""
+    pool = ProcessPoolExecutor(
+        max_workers=workers, mp_context=mp_context, initializer=_ignore_interrupts
+    )
+    try:
+        yield pool
+    except BaseException:
+        _stop(pool)
+        raise
+    pool.shutdown(wait=True)
 
 
 class Executor(Protocol):
@@ -78,10 +135,11 @@ class ProcessExecutor:
         n = min(self.workers, len(items))
         if n == 0:
             return
-        with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
-            futures: dict[Future, int] = {
-                pool.submit(_call, fn, item): i for i, item in enumerate(items)
-            }
+        with process_pool(n, ctx) as pool:
+            with spawning():
+                futures: dict[Future, int] = {
+                    pool.submit(_call, fn, item): i for i, item in enumerate(items)
+                }
             waiting = set(futures)
             while waiting:
                 done, waiting = wait(waiting, return_when=FIRST_COMPLETED)
@@ -92,8 +150,10 @@ class ProcessExecutor:
                         broken.append(futures[fut])
         for i in sorted(broken):
             try:
-                with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as solo:
-                    outcome = solo.submit(_call, fn, items[i]).result()
+                with process_pool(1, ctx) as solo:
+                    with spawning():
+                        future = solo.submit(_call, fn, items[i])
+                    outcome = future.result()
             except BrokenProcessPool:
                 outcome = Failed("worker process died (crash or out of memory)")
             yield i, outcome
@@ -125,5 +185,7 @@ __all__ = [
     "ProcessExecutor",
     "SerialExecutor",
     "make_executor",
+    "process_pool",
     "run_all",
+    "spawning",
 ]

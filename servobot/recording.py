@@ -48,6 +48,7 @@ import rerun.blueprint as rrb
 from evolve import geometry
 from evolve.codec import LIGHT_LEFT, LIGHT_RIGHT, LOW_POWER, OBJECT_LEFT, OBJECT_RIGHT
 from evolve.settings import WorldSettings
+from infra.io import OutputError, partial_path
 from servo_mj.robot.constants import CM_PER_M
 
 SENSORS: tuple[tuple[str, int], ...] = (
@@ -250,7 +251,7 @@ class Recording:
         self._blueprint = blueprint
         self.path.parent.mkdir(parents=True, exist_ok=True)
         # A unique hidden name beside the target; rerun creates it with the usual file mode.
-        self._tmp = self.path.parent / f".{self.path.stem}.{uuid.uuid4().hex}.rrd"
+        self._tmp = partial_path(self.path)
         self.rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
         self.rec.save(str(self._tmp))
         self._closed = False
@@ -739,9 +740,13 @@ class Recording:
             ok = save
         finally:
             self.rec.disconnect()
-            if ok:
-                os.replace(self._tmp, self.path)
-            self._tmp.unlink(missing_ok=True)
+            try:
+                if ok:
+                    os.replace(self._tmp, self.path)
+            except OSError as exc:
+                raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from exc
+            finally:
+                self._tmp.unlink(missing_ok=True)
 
 
 def calibration_recorder(rec: Recording, settings: Any) -> dict[str, Any]:

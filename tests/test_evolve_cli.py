@@ -99,7 +99,7 @@ def test_bad_input_exits_2_with_a_message(tmp_path, capsys, args, message):
 def test_resume_with_other_settings_exits_2(run_dir, capsys):
     args = ["navigation", *TINY, "--generations", "6", "--seed", "5", "--out", str(run_dir)]
     assert cli.main([*args, "--resume"]) == 2
-    assert "different settings" in capsys.readouterr().err
+    assert "other settings (GASettings.seed: 0 there, 5 here)" in capsys.readouterr().err
 
 
 def test_evolve_help_needs_no_mujoco():

@@ -12,6 +12,7 @@ import rerun as rr
 
 from evolve.codec import read_chromosome
 from evolve.table import load_table
+from infra.rundir import RunDirError
 from servobot.cli.reproduce import main
 from servobot.reproduce import (
     ReproduceError,
@@ -116,7 +117,7 @@ def test_other_settings_in_the_same_folder_are_refused(run_dir: tuple[Path, dict
     out, _ = run_dir
     other = dataclasses.replace(TINY, coverage_generations=3)
     report = (out / "REPORT.md").read_text()
-    with pytest.raises(ReproduceError, match="coverage_generations"):
+    with pytest.raises(RunDirError, match="coverage_generations: 2 there, 3 here"):
         reproduce(out, settings=other, workers=1, log=lambda _m: None)
     assert (out / "REPORT.md").read_text() == report  # nothing rewritten
 

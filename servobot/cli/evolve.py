@@ -10,7 +10,10 @@ Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for
 ``GASettings()`` for coverage. ``--navigation`` defaults to ``DIR/navigation/best.txt``; a
 16-gene file (e.g. a ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the
 navigation section, are used. Bad input (missing or malformed files, a bad gait table,
-impossible sizes) prints one message and exits with code 2, without a traceback.
+impossible sizes, a run folder holding another run or in use) prints one message and exits
+with code 2, without a traceback (``servobot.cli.runner``); ``--force`` deletes the stage's
+own files in a folder holding another run and starts afresh. Ctrl-C keeps the checkpoints
+and says how to resume (exit 130).
 """
 
 from __future__ import annotations
@@ -24,17 +27,16 @@ from typing import Any
 import numpy as np
 
 from evolve.settings import GASettings, navigation_ga_settings
+from infra.errors import InputError
+from servobot.cli.runner import Interrupted, command_line, run_command
 from servobot.progress import GenerationBars
 
+PROG = "servobot evolve"
 DEFAULT_OUT = Path("runs/evolve")
 """Default run folder of ``--out``."""
-EXIT_USAGE = 2
-"""Exit code of bad input (argparse's convention)."""
-EXIT_INTERRUPTED = 130
-"""Exit code after Ctrl-C (128 + SIGINT, the shell's convention)."""
 
 
-class CliError(ValueError):
+class CliError(InputError, ValueError):
     """Bad command-line input; the message is printed as is."""
 
 
@@ -67,6 +69,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--resume", action="store_true", help="continue from the checkpoints in the run folder"
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="the stage's folder holds another run: delete that run's files (only those) and "
+        "start afresh",
     )
     p.add_argument(
         "--navigation",
@@ -107,7 +115,7 @@ def load_navigation(path: Path) -> np.ndarray:
     from evolve.codec import read_chromosome
     from evolve.stages import navigation_section
 
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         raise CliError(
             f"{path}: no navigation section file; run 'servobot evolve navigation' with the "
             "same --out first, or give --navigation FILE"
@@ -146,49 +154,38 @@ def _print_coverage(summary: dict[str, Any], out: Path) -> None:
     print(f"wrote {out / 'coverage'} and {out / 'figure8.png'} ({summary['wall_s']:.1f} s)")
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run ``servobot evolve``; returns the exit code (0 ok, 2 bad input)."""
-    args = build_parser().parse_args(argv)
+def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     from evolve import stages
-    from evolve.codec import ChromosomeError
-    from evolve.table import GaitTableError, load_table
+    from evolve.table import load_table
 
+    ga = ga_settings(args)
+    table = load_table(args.table)
+    kw = dict(table=table, ga=ga, resume=args.resume, force=args.force, on_generation=bars)
+    if args.stage == "navigation":
+        if args.navigation is not None:
+            raise CliError("--navigation is an option of the coverage stage")
+        _print_navigation(stages.run_navigation(args.out, **kw), args.out)
+    else:
+        navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt")
+        _print_coverage(stages.run_coverage(args.out, navigation=navigation, **kw), args.out)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``servobot evolve``; returns the exit code (0 ok, 2 bad input, 130 interrupted)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
     bars = GenerationBars(enabled=not args.no_progress)
+
+    def interrupted() -> Interrupted:
+        ckpt = args.out / args.stage / "checkpoints"
+        kept = f"the checkpoints in {ckpt}" if ckpt.is_dir() else "nothing yet"
+        return Interrupted(kept, command_line(PROG, argv, "--resume"))
+
     try:
-        ga = ga_settings(args)
-        table = load_table(args.table)
-        if args.stage == "navigation":
-            if args.navigation is not None:
-                raise CliError("--navigation is an option of the coverage stage")
-            summary = stages.run_navigation(
-                args.out, table=table, ga=ga, resume=args.resume, on_generation=bars
-            )
-            _print_navigation(summary, args.out)
-        else:
-            nav_path = args.navigation or args.out / "navigation" / "best.txt"
-            navigation = load_navigation(nav_path)
-            summary = stages.run_coverage(
-                args.out,
-                navigation=navigation,
-                table=table,
-                ga=ga,
-                resume=args.resume,
-                on_generation=bars,
-            )
-            _print_coverage(summary, args.out)
-    except (CliError, stages.StageError, GaitTableError, ChromosomeError) as exc:
-        print(f"servobot evolve: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        print(
-            f"\nservobot evolve: interrupted; the checkpoints in {args.out} are kept, "
-            "rerun the same command with --resume to continue",
-            file=sys.stderr,
-        )
-        return EXIT_INTERRUPTED
+        return run_command(PROG, lambda: _run(args, bars), interrupted)
     finally:
         bars.close()
-    return 0
 
 
 if __name__ == "__main__":
