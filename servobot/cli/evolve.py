@@ -28,6 +28,7 @@ import numpy as np
 
 from evolve.settings import GASettings, navigation_ga_settings
 from infra.errors import InputError
+from infra.io import check_output_dir
 from servobot.cli.runner import Interrupted, command_line, run_command
 from servobot.progress import GenerationBars
 
@@ -160,6 +161,7 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
 
     ga = ga_settings(args)
     table = load_table(args.table)
+    check_output_dir(args.out, option="--out")
     kw = dict(table=table, ga=ga, resume=args.resume, force=args.force, on_generation=bars)
     if args.stage == "navigation":
         if args.navigation is not None:

@@ -68,6 +68,7 @@ def _run(args: argparse.Namespace) -> int:
     runs = tqdm(
         total=settings.coverage_populations * settings.validate_starts,
         desc="validation runs", unit="run", disable=args.no_progress, file=sys.stderr,
+        delay=1e-3,  # drawn at its first run, not before the checks
     )  # fmt: skip
     try:
         res = reproduce(
