@@ -33,9 +33,11 @@ GENE = "01 0100000 0100000 0100000 0100000"
 
 json_values = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(max_size=8),
-    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=6), inner, max_size=4),
+    lambda inner: (
+        st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=6), inner, max_size=4)
+    ),
     max_leaves=12,
-)  # fmt: skip
+)
 """Any JSON value."""
 raw_numbers = st.sampled_from(
     ["NaN", "Infinity", "-Infinity", "1e400", "-1e999", "1" + "0" * 5000, "2.7", "1.7e308",
@@ -79,8 +81,10 @@ def _mutated_json(doc: object) -> st.SearchStrategy[str]:
     marker = "__RAW__"
     replaced = st.builds(lambda p, v: json.dumps(_replace(doc, p, v)), paths, values)
     raw = st.builds(
-        lambda p, r: json.dumps(_replace(doc, p, marker)).replace(f'"{marker}"', r), paths, raw_numbers
-    )  # fmt: skip
+        lambda p, r: json.dumps(_replace(doc, p, marker)).replace(f'"{marker}"', r),
+        paths,
+        raw_numbers,
+    )
     return replaced | raw
 
 
