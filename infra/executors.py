@@ -101,7 +101,9 @@ def process_pool(workers: int, mp_context: Any = None) -> Iterator[ProcessPoolEx
 
 
 class Executor(Protocol):
-    """Runs ``fn`` over ``items``, yielding ``(index, outcome)`` as each finishes."""
+    """Runs ``fn`` over ``items``, yielding ``(index, outcome)`` as each finishes. ``imap``
+    returns a generator: closing it (``contextlib.closing``) stops the runs still going, so a
+    caller interrupted between two outcomes leaves no worker behind."""
 
     def imap(
         self, fn: Callable[[Any], Any], items: Sequence[Any]

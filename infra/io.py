@@ -171,13 +171,14 @@ def partial_path(path: str | Path) -> Path:
     return path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}{PARTIAL_MARK}{path.suffix}"
 
 
-def remove_partials(folder: str | Path) -> list[Path]:
+def remove_partials(folder: str | Path, *, any_age: bool = False) -> list[Path]:
     """Delete the temporary files (``PARTIAL_GLOB``) that earlier, killed processes left in
-    ``folder`` (this process's own, still being written, are newer than it and stay). Only
-    call it while no other process writes there (``infra.rundir`` holds the lock)."""
+    ``folder``; this process's own (newer than it, perhaps still being written) stay unless
+    ``any_age``. Only call it while no other process writes there (``infra.rundir`` holds
+    the lock)."""
     removed = []
     for p in Path(folder).glob(PARTIAL_GLOB):
-        if p.is_file() and p.stat().st_mtime < _PROCESS_START:
+        if p.is_file() and (any_age or p.stat().st_mtime < _PROCESS_START):
             p.unlink(missing_ok=True)
             removed.append(p)
     return removed
@@ -198,16 +199,19 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     """
     path = Path(path)
     tmp = partial_path(path)
+    created = False
     with held_signals():
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _file_mode()))
+            created = True
             write(tmp)
             os.replace(tmp, path)
         except OSError as exc:
             raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from exc
         finally:
-            tmp.unlink(missing_ok=True)
+            if created:
+                tmp.unlink(missing_ok=True)
     return path
 
 

@@ -21,7 +21,10 @@ into a folder runs inside. Before anything in the folder is touched it
    ``force`` starts afresh instead: it deletes only the files that match ``owned`` (and
    folders left empty by that), never anything else in the folder.
 
-The lock is held until the block ends. Locks are POSIX (Linux, macOS); where ``fcntl`` does
+The lock is held until the block ends. If the block ends with an exception (Ctrl-C
+included), the temporary files of the run's unfinished writes are removed before the lock is
+released; the caller must have stopped its writers by then (``infra.executors`` terminates
+its workers on the way out). Locks are POSIX (Linux, macOS); where ``fcntl`` does
 not exist the folder is used unlocked.
 """
 
@@ -195,7 +198,12 @@ def run_folder(
             remove_partials(d)
         state = _take(folder, settings, owned, resume, resumable, force, option)
         atomic_write_json(folder / RECORD_FILE, settings)
-        yield Claim(folder, state)
+        try:
+            yield Claim(folder, state)
+        except BaseException:  # the run's writers have stopped: drop their temporary files
+            for d in _owned_dirs(folder, owned):
+                remove_partials(d, any_age=True)
+            raise
 
 
 __all__ = [

@@ -30,6 +30,7 @@ discarded, never left truncated at its final path.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import shutil
@@ -316,18 +317,19 @@ def _run_jobs(
 ) -> list[dict[str, Any]]:
     """Every job's record in start order; a worker that failed gives a record with its error."""
     runs: list[dict[str, Any]] = [{} for _ in jobs]
-    for k, outcome in ex.imap(run_start, jobs):
-        if isinstance(outcome, Failed):
-            x, y, h = jobs[k].start
-            rec: dict[str, Any] = {
-                "index": k, "start": {"x": x, "y": y, "h": h}, "table": None,
-                "physics": None, "error": outcome.message, "tracks": {},
-            }  # fmt: skip
-        else:
-            rec = outcome.value
-        runs[k] = rec
-        if on_run is not None:
-            on_run(rec)
+    with contextlib.closing(ex.imap(run_start, jobs)) as outcomes:  # stops workers on Ctrl-C
+        for k, outcome in outcomes:
+            if isinstance(outcome, Failed):
+                x, y, h = jobs[k].start
+                rec: dict[str, Any] = {
+                    "index": k, "start": {"x": x, "y": y, "h": h}, "table": None,
+                    "physics": None, "error": outcome.message, "tracks": {},
+                }  # fmt: skip
+            else:
+                rec = outcome.value
+            runs[k] = rec
+            if on_run is not None:
+                on_run(rec)
     return runs
 
 
