@@ -12,8 +12,8 @@ leaves a torn file (or a zipfile error). A write that fails raises ``OutputError
 file. Temporary files of a killed run match ``PARTIAL_GLOB`` and are removed by
 ``remove_partials`` (``infra.rundir`` does it when it takes a run folder).
 
-``check_output_dir`` / ``check_output_file`` prove that an output place can be written before
-any long work starts.
+``check_output_dir`` / ``check_output_file`` prove that an output place can be written, and
+``check_free_space`` that the disk has room, before any long work starts.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import signal
 import stat
 import tempfile
@@ -251,6 +252,16 @@ def check_output_dir(path: str | Path, *, option: str = "--out") -> Path:
     return path
 
 
+def check_free_space(folder: str | Path, need_bytes: float, *, what: str) -> None:
+    """``OutputError`` if the disk holding ``folder`` has less than ``need_bytes`` free."""
+    free = shutil.disk_usage(folder).free
+    if need_bytes > free:
+        raise OutputError(
+            f"{folder}: {what} need about {need_bytes / 1e6:,.0f} MB, only {free / 1e6:,.0f} MB "
+            "are free there"
+        )
+
+
 def check_output_file(path: str | Path, *, option: str) -> Path:
     """Prove that the file ``path`` can be written (its folder is created and probed; it must
     not be a folder), else ``OutputError`` naming ``option``."""
@@ -269,6 +280,7 @@ __all__ = [
     "atomic_write",
     "atomic_write_json",
     "atomic_write_text",
+    "check_free_space",
     "check_output_dir",
     "check_output_file",
     "decode_text",

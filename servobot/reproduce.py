@@ -48,7 +48,7 @@ from evolve.stages import STAGE_FILES, run_coverage, run_navigation, stage_need
 from evolve.starts import coverage_starts
 from evolve.table import GaitTable, load_table
 from infra.bounds import Need, check_need
-from infra.io import atomic_write_json, read_json
+from infra.io import atomic_write_json, check_free_space, read_json
 from infra.rundir import RECORD_FILE, run_folder
 from servobot.recording import Recording, calibration_recorder
 from servobot.reproduce_report import write_report
@@ -310,6 +310,11 @@ def reproduce(
     t_all = time.perf_counter()
     doc = {"ReproduceSettings": s.to_dict(), **json.loads(settings_json(world))}
     with run_folder(out, doc, owned=REPRODUCE_FILES, resume=True, force=force):
+        disk = (
+            s.coverage_populations
+            * validation_need(s.validate_starts, s.validate_max_steps, workers, True)[1]
+        )
+        check_free_space(out, disk, what="the validation recordings")
         run = _Pipeline(out, s, world, workers, log, on_generation, on_run)
         try:
             table = run.calibration()

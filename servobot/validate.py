@@ -33,7 +33,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -48,10 +47,10 @@ from evolve.interpreter import END_NAMES, run
 from evolve.settings import WorldSettings
 from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
-from infra.bounds import LIMITS, Need, check_int, check_need, format_bytes
+from infra.bounds import LIMITS, Need, check_int, check_need
 from infra.errors import InputError
 from infra.executors import Executor, Failed, make_executor
-from infra.io import OutputError
+from infra.io import check_free_space
 from infra.rundir import run_folder
 from servo_mj.robot.model import model_sha256
 from servo_mj.world.arena import ArenaSettings, overlaps_station
@@ -303,15 +302,6 @@ def _check_sizes(n: int, steps: int, workers: int | None, rrd: bool, seed: int) 
     return disk
 
 
-def _check_disk(out: Path, need: int) -> None:
-    free = shutil.disk_usage(out).free
-    if need > free:
-        raise OutputError(
-            f"{out}: the recordings need about {format_bytes(need)}, only {format_bytes(free)} "
-            "are free there"
-        )
-
-
 def _run_jobs(
     ex: Executor, jobs: list[StartJob], on_run: Callable[[dict[str, Any]], None] | None
 ) -> list[dict[str, Any]]:
@@ -411,7 +401,7 @@ def validate(
     record = {"chromosome": head["chromosome"], "table": head["table"]["values"],
               "starts": [list(p) for p in poses], "settings": settings, "rrd": rrd}  # fmt: skip
     with run_folder(out, record, owned=VALIDATION_FILES, resumable=False, force=force):
-        _check_disk(out, disk)
+        check_free_space(out, disk, what="the recordings")
         report, tracks = _run_all(jobs, ex, on_run, head, world)
         write_report(out, report, tracks)
     return report

@@ -271,3 +271,23 @@ def test_a_folder_in_use_is_refused(tmp_path, capsys):
         release.set()
         holder.join(30)
     assert _run(["evolve", "navigation", *TINY, "--out", str(tmp_path)], capsys)[0] == 0
+
+
+def test_validation_of_other_inputs_is_refused_and_force_leaves_no_stale_recording(
+    tmp_path, capsys
+):
+    chromosome = tmp_path / "c.txt"
+    chromosome.write_text(GENE * 16)
+    out = tmp_path / "val"
+    args = ["validate", str(chromosome), "--steps", "2", "--workers", "1", "--rrd",
+            "--no-progress", "--out", str(out)]  # fmt: skip
+    two = ["--start", "400", "250", "90", "--start", "380", "200", "0"]
+    assert _run([*args, *two], capsys)[0] == 0
+    assert (out / "run1.rrd").exists()
+    one = ["--start", "400", "250", "90"]
+    code, err = _run([*args, *one], capsys)
+    assert code == 2 and "holds a run made with other settings (starts:" in err
+    assert (out / "run1.rrd").exists() and (out / "report.json").exists()
+    assert _run([*args, *one, "--force"], capsys)[0] == 0
+    assert sorted(p.name for p in out.glob("run*.rrd")) == ["run0.rrd"]  # run1.rrd was stale
+    assert len(json.loads((out / "report.json").read_text())["runs"]) == 1

@@ -7,6 +7,7 @@ hands the rest to ``run_command(prog, body, on_interrupt)``, which
 - turns an ``infra.errors.InputError`` (a file, option, output place, run folder or size that
   cannot be used) into ``prog: error: <message>`` on stderr and exit code 2;
 - turns ``MemoryError`` into a message and exit code 2 (the size checks should come first);
+- ends quietly (exit 0) when stdout is a pipe whose reader stopped (``| head``);
 - turns Ctrl-C into ``prog: interrupted; kept: ...; resume with: ...`` and exit code 130,
   and SIGTERM into the same message and exit code 143 (SIGTERM is raised in the main thread
   as ``Terminated``, a ``KeyboardInterrupt``, so every ``finally`` and ``with`` block runs:
@@ -17,6 +18,8 @@ Any other exception is a bug and keeps its traceback.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import shlex
 import signal
 import sys
@@ -77,6 +80,10 @@ def run_command(
     except MemoryError:
         print(f"{prog}: error: out of memory; choose smaller sizes", file=sys.stderr)
         return EXIT_USAGE
+    except BrokenPipeError:  # output piped into e.g. `head`: stop quietly, as Unix tools do
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except KeyboardInterrupt as exc:
         if main:  # a second Ctrl-C must not cut the message short
             signal.signal(signal.SIGINT, signal.SIG_IGN)

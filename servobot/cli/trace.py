@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 from pathlib import Path
 from typing import TextIO
@@ -114,28 +113,24 @@ def _run(args: argparse.Namespace, out: TextIO) -> int:
             f"start ({start[0]:g}, {start[1]:g}, {start[2]:g})\n{TEXT_HEADER}\n"
         )
     kw = dict(mode=mode, table=table, world=world, power=args.power, max_steps=args.steps)
-    try:
-        if args.rrd is None:
-            res = trace(bits, start, on_event=emit, **kw)
-        else:
-            from servobot.recording import Recording  # lazy: rerun only when asked for
+    if args.rrd is None:
+        res = trace(bits, start, on_event=emit, **kw)
+    else:
+        from servobot.recording import Recording  # lazy: rerun only when asked for
 
-            with Recording(args.rrd, app_id="servobot-trace") as rec:
-                rec.log_arena(world)
+        with Recording(args.rrd, app_id="servobot-trace") as rec:
+            rec.log_arena(world)
 
-                def emit_and_record(e: StepEvent) -> None:
-                    emit(e)
-                    rec.log_event(e, world_name="table")
+            def emit_and_record(e: StepEvent) -> None:
+                emit(e)
+                rec.log_event(e, world_name="table")
 
-                res = trace(bits, start, on_event=emit_and_record, **kw)
-        if not args.json:
-            out.write(summary_line(res) + "\n")
-            if args.rrd is not None:
-                out.write(f"# recording: {args.rrd}\n")
-        out.flush()
-    except BrokenPipeError:  # e.g. piped into `head`: stop quietly, as Unix tools do
-        if out is sys.stdout:
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            res = trace(bits, start, on_event=emit_and_record, **kw)
+    if not args.json:
+        out.write(summary_line(res) + "\n")
+        if args.rrd is not None:
+            out.write(f"# recording: {args.rrd}\n")
+    out.flush()
     return 0
 
 
