@@ -2,8 +2,9 @@
 
 Reading (``read_text``, ``read_json``): a path that is missing, a folder, a device, unreadable,
 too large, binary, UTF-16 or not UTF-8 raises ``ReadError`` naming the file and the problem
-(a UTF-8 byte-order mark is accepted). JSON is parsed strictly: ``NaN``, ``Infinity`` and
-numbers that overflow a float are refused, so no non-finite number enters a run from a file.
+(a UTF-8 byte-order mark is accepted). JSON is parsed strictly: ``NaN``, ``Infinity``,
+numbers that overflow a float and documents nested deeper than ``MAX_JSON_DEPTH`` are
+refused, so no non-finite number (or recursion bomb) enters a run from a file.
 
 Writing (``atomic_write*``): a result is either absent or complete, never half-written. The
 data go to a hidden temporary file beside the target (``partial_path``), which is renamed into
@@ -38,6 +39,9 @@ from infra.errors import InputError
 MAX_INPUT_BYTES = 64 * 2**20
 """Largest text input read, bytes (chromosomes, gait tables, settings are a few kB; a larger
 file is something else and is refused before it is read)."""
+MAX_JSON_DEPTH = 64
+"""Deepest nesting of lists and objects accepted in a JSON input (ours use 4 levels; deeper
+documents would exhaust the recursion of code that walks them)."""
 PARTIAL_MARK = ".partial"
 """Marks the temporary file of an output being written: ``.NAME.<random>.partial.SUFFIX``."""
 PARTIAL_GLOB = f".*{PARTIAL_MARK}*"
@@ -119,16 +123,31 @@ def _finite_float(text: str) -> float:
     return value
 
 
+def _depth(doc: Any) -> int:
+    """Nesting depth of a parsed JSON document (iterative: any depth is safe)."""
+    deepest, todo = 0, [(doc, 1)]
+    while todo:
+        node, d = todo.pop()
+        if isinstance(node, dict | list):
+            deepest = max(deepest, d)
+            todo += [(v, d + 1) for v in (node.values() if isinstance(node, dict) else node)]
+    return deepest
+
+
 def parse_json(text: str, path: str | Path, *, what: str) -> Any:
-    """Parse ``text`` as strict JSON (finite numbers only); ``ReadError`` naming ``path``."""
+    """Parse ``text`` as strict JSON (finite numbers only, at most ``MAX_JSON_DEPTH`` levels
+    of nesting); ``ReadError`` naming ``path``."""
     try:
-        return json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
+        doc = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
     except json.JSONDecodeError as exc:
         raise ReadError(path, f"not valid JSON ({exc})") from exc
     except ValueError as exc:  # the hooks above, or an integer of too many digits
         raise ReadError(path, f"not a valid {what}: {exc}") from exc
     except RecursionError as exc:
         raise ReadError(path, f"not a valid {what}: nested too deeply") from exc
+    if _depth(doc) > MAX_JSON_DEPTH:
+        raise ReadError(path, f"not a valid {what}: nested more than {MAX_JSON_DEPTH} deep")
+    return doc
 
 
 def read_json(

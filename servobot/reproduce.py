@@ -53,6 +53,7 @@ from infra.rundir import RECORD_FILE, run_folder
 from servobot.recording import Recording, calibration_recorder
 from servobot.reproduce_report import write_report
 from servobot.reproduce_settings import (
+    STAGES,
     ReproduceError,
     ReproduceSettings,
     check_settings,
@@ -68,7 +69,8 @@ RECORDING_FILE = "calibration.rrd"
 DONE = "done.json"
 """A stage's completion marker: its settings key, wall time and a summary."""
 REPRODUCE_FILES = (
-    "REPORT.md", "figure8.png", f"*/{DONE}", f"*/{RECORD_FILE}", f"calibration/{RECORDING_FILE}",
+    "REPORT.md", "figure8.png", f"calibration/{RECORDING_FILE}",
+    *(f"{stage}/{f}" for stage in STAGES for f in (DONE, RECORD_FILE)),
     *(f"calibration/{f}" for f in CALIBRATION_FILES),
     *(f"{stage}/{f}" for stage in ("navigation", "coverage") for f in STAGE_FILES),
     "validation/starts.json",

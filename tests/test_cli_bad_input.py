@@ -52,6 +52,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "list_json": d / "list.json",
         "deep_json": d / "deep.json",
         "bad_params": d / "params.json",
+        "deep_meta": d / "deep_meta.json",
         "devnull": Path(os.devnull),
     }
     f["dir"].mkdir()
@@ -72,6 +73,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     f["list_json"].write_text("[1, 2, 3]")
     f["deep_json"].write_text("[" * 100_000 + "]" * 100_000)
     f["bad_params"].write_text(json.dumps({"gaits": [{"gait": 0}], "stride_rad": 0.47}))
+    deep = '{"a": ' * 900 + "1" + "}" * 900  # parses, but would exhaust recursive walkers
+    f["deep_meta"].write_text(_table_doc()[:-1] + f', "provenance": {deep}}}')
     return f
 
 
@@ -131,6 +134,7 @@ CASES = {
         (["{chrom16}", "--noise", "nan"], "--noise must be a number between 0 and"),
         (["{chrom16}", "--workers", "1000000"], "--workers must be an integer between 1"),
         (["{chrom16}", "--table", "{huge_table}"], "number 1e400 is too large"),
+        (["{chrom16}", "--table", "{deep_meta}"], "nested more than 64 deep"),
         (["{chrom16}", "--out", "{chrom16}"], "is a file, not a folder"),
         (["{chrom16}", "--out", "/proc/servobot-x"], "cannot write there"),
     ],

@@ -238,3 +238,13 @@ def test_trace_rrd_records_the_table_run(forward, tmp_path, capsys):
     assert "/world/arena/squares" in static and "/world/arena/kill_zone" in static
     assert rows["/world/track/table"] == 6  # 5 steps + the end event
     assert rows["/world/squares/table"] == 2  # squares 55 and 56 newly reached
+
+
+def test_stage_files_list_every_file_a_stage_writes(run_dir):
+    from evolve.stages import STAGE_FILES
+    from infra.rundir import LOCK_FILE, RECORD_FILE, owned_files
+
+    for stage in ("navigation", "coverage"):
+        folder = run_dir / stage
+        written = {p for p in folder.rglob("*") if p.is_file() and p.name != LOCK_FILE}
+        assert set(owned_files(folder, [*STAGE_FILES, RECORD_FILE])) == written

@@ -90,6 +90,7 @@ def test_read_text_accepts_a_bom_and_names_every_unusable_file(tmp_path, monkeyp
         ('{"F": 1e400}', "number 1e400 is too large"),
         ('{"F": ' + "9" * 5000 + "}", "not a valid"),
         ("[" * 50_000 + "]" * 50_000, "nested too deeply"),
+        ('{"a": ' * 65 + "1" + "}" * 65, "nested more than 64 deep"),
         ('{"F": 1', "not valid JSON"),
     ],
 )

@@ -155,3 +155,12 @@ def test_failed_stage_is_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     assert "| calibration |" in text and "failed: calibration failed (test)" in text
     assert "| navigation | — | not reached |" in text
     assert not (tmp_path / "calibration" / "done.json").exists()
+
+
+def test_force_would_delete_exactly_the_files_a_run_wrote(run_dir: tuple[Path, dict]) -> None:
+    from infra.rundir import LOCK_FILE, RECORD_FILE, owned_files
+    from servobot.reproduce import REPRODUCE_FILES
+
+    out, _ = run_dir
+    written = {p for p in out.rglob("*") if p.is_file() and p.name != LOCK_FILE}
+    assert set(owned_files(out, [*REPRODUCE_FILES, RECORD_FILE])) == written
