@@ -282,12 +282,21 @@ def check_free_space(folder: str | Path, need_bytes: float, *, what: str) -> Non
 
 
 def check_output_file(path: str | Path, *, option: str) -> Path:
-    """Prove that the file ``path`` can be written (its folder is created and probed; it must
-    not be a folder), else ``OutputError`` naming ``option``."""
+    """Prove that the file ``path`` can be written: it is not a folder, its folder is created,
+    and the temporary file an atomic write of it uses can be made there; else
+    ``OutputError`` naming ``option``."""
     path = Path(path)
-    if path.is_dir():
-        raise OutputError(f"{option} {path}: is a folder, not a file")
     check_output_dir(path.parent, option=f"{option} {path}: folder")
+    try:
+        if path.is_dir():
+            raise OutputError(f"{option} {path}: is a folder, not a file")
+        tmp = partial_path(path)
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        tmp.unlink()
+    except OSError as exc:
+        if isinstance(exc, OutputError):
+            raise
+        raise OutputError(f"{option} {path}: cannot write it ({exc.strerror or exc})") from exc
     return path
 
 

@@ -120,6 +120,10 @@ CASES = {
         (["{chrom8}", "--start", "250", "250", "0", "--table", "{inf_table}"], "Infinity"),
         (["{chrom8}", "--start", "250", "250", "0", "--rrd", "{dir}"], "--rrd"),
         (["{chrom8}", "--start", "250", "250", "0", "--rrd", "/proc/x/t.rrd"], "--rrd"),
+        (
+            ["{chrom8}", "--start", "250", "250", "0", "--rrd", "{dir}/" + "x" * 250 + ".rrd"],
+            "File name too long",
+        ),  # fmt: skip
     ],
     "validate": [
         (["{dir}"], "a_folder: is a folder, not a chromosome file"),
