@@ -25,6 +25,8 @@ import csv
 import io
 import json
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -163,6 +165,19 @@ def check_ga(ga: GASettings, max_steps: int) -> None:
         raise StageError(str(exc)) from exc
 
 
+@contextmanager
+def _stage_folder(
+    stage: Stage, folder: Path, table: GaitTable, ga: GASettings, world: WorldSettings,
+    resume: bool, force: bool,
+) -> Iterator[dict[str, Any]]:  # fmt: skip
+    """Check the sizes, then hold the stage's folder (lock, ownership record) for the block;
+    yields the settings document."""
+    check_ga(ga, stage.max_steps)
+    doc = _settings_doc(stage, ga, world, table)
+    with run_folder(folder, doc, owned=STAGE_FILES, resume=resume, force=force):
+        yield doc
+
+
 def _run_populations(
     stage: Stage,
     folder: Path,
@@ -221,10 +236,8 @@ def run_navigation(
     """
     ga = navigation_ga_settings() if ga is None else ga
     stage = navigation_stage(world)
-    check_ga(ga, stage.max_steps)
     folder = Path(out) / "navigation"
-    doc = _settings_doc(stage, ga, world, table)
-    with run_folder(folder, doc, owned=STAGE_FILES, resume=resume, force=force):
+    with _stage_folder(stage, folder, table, ga, world, resume, force) as doc:
         return _navigation(stage, folder, doc, table, ga, world, resume, on_generation)
 
 
@@ -327,10 +340,7 @@ def run_coverage(
     """
     out = Path(out)
     stage = coverage_stage(world, navigation)
-    check_ga(ga, stage.max_steps)
-    folder = out / "coverage"
-    doc = _settings_doc(stage, ga, world, table)
-    with run_folder(folder, doc, owned=STAGE_FILES, resume=resume, force=force):
+    with _stage_folder(stage, out / "coverage", table, ga, world, resume, force) as doc:
         return _coverage(stage, out, doc, table, ga, world, resume, on_generation)
 
 
