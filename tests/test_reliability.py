@@ -333,6 +333,10 @@ def test_runner_maps_endings_to_exit_codes_and_messages(capsys):
         "servobot e --out 'a b' --resume"
     )
     assert command_line("servobot e", ["--resume"], "--resume") == "servobot e --resume"
+    # resuming must not delete what --force started
+    assert command_line("servobot e", ["--force"], "--resume", drop=["--force"]) == (
+        "servobot e --resume"
+    )
 
 
 def _sleep_and_report(path: str) -> int:

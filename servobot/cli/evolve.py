@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     def interrupted() -> Interrupted:
         ckpt = args.out / args.stage / "checkpoints"
         kept = f"the checkpoints in {ckpt}" if ckpt.is_dir() else "nothing yet"
-        return Interrupted(kept, command_line(PROG, argv, "--resume"))
+        return Interrupted(kept, command_line(PROG, argv, "--resume", drop=["--force"]))
 
     try:
         return run_command(PROG, lambda: _run(args, bars), interrupted)

@@ -93,6 +93,6 @@ def main(argv: list[str] | None = None) -> int:
 
     def interrupted() -> Interrupted:
         kept = f"the finished stages and the evolution checkpoints in {args.out}"
-        return Interrupted(kept, command_line(PROG, argv))
+        return Interrupted(kept, command_line(PROG, argv, drop=["--force"]))
 
     return run_command(PROG, lambda: _run(args), interrupted)

@@ -54,10 +54,12 @@ class Interrupted:
     """The command that resumes (or redoes) the run."""
 
 
-def command_line(prog: str, argv: Sequence[str], *extra: str) -> str:
-    """``prog`` and its arguments as one shell-quoted line, with ``extra`` appended unless
-    already there (``command_line("servobot evolve", argv, "--resume")``)."""
-    args = [*argv, *(e for e in extra if e not in argv)]
+def command_line(prog: str, argv: Sequence[str], *extra: str, drop: Sequence[str] = ()) -> str:
+    """``prog`` and its arguments as one shell-quoted line, without the flags in ``drop`` and
+    with ``extra`` appended unless already there (the resume command of an interrupted run:
+    ``command_line("servobot evolve", argv, "--resume", drop=["--force"])``)."""
+    args = [a for a in argv if a not in drop]
+    args += [e for e in extra if e not in args]
     return " ".join([prog, *(shlex.quote(a) for a in args)])
 
 

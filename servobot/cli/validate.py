@@ -121,7 +121,7 @@ def _check_options(args: argparse.Namespace, n_starts: int) -> None:
         check_number(args.noise, "--noise", lo=0.0, hi=MAX_TARGET_RAD, unit=" rad")
     if args.steps is not None:
         check_int(args.steps, "--steps", lo=0)
-    steps = 600 if args.steps is None else args.steps
+    steps = WorldSettings().coverage_steps if args.steps is None else args.steps
     check_need(validation_need(n_starts, steps, args.workers, args.rrd)[0],
                f"--starts {n_starts} × --steps {steps}")  # fmt: skip
 
