@@ -5,7 +5,11 @@ The library function under ``servobot calibrate`` and the pipeline's first stage
 per cycle, plus provenance: the model's label, hash and variant parameters, MuJoCo version,
 settings, servo model, gait parameters), ``out/figure4.png`` and, with a fit,
 ``out/gait_params.json`` (and ``params_out``, e.g. the shipped file). Every file is written
-atomically once all physics has finished, so a failed run loses nothing already written.
+atomically once all physics has finished, so a failed or interrupted run loses nothing
+already written. Before any physics, the sizes are checked against the machine
+(``calibration_need``) and ``out`` is taken as a run folder (``infra.rundir``: a lock, and
+``settings.json`` recording the settings and gait parameters; a folder holding a calibration
+made otherwise is refused unless ``force``, which deletes only ``CALIBRATION_FILES``).
 
 Recording is a consumer of the callbacks ``on_frame(gait, data)`` and
 ``on_cycle(gait, result, bot)``; with either, the gaits run one after another in this process.
@@ -36,8 +40,10 @@ from calibration.measure import (
 from calibration.report import save_figure, within_tolerance
 from evolve.settings import WorldSettings
 from evolve.table import table_to_json
+from infra.bounds import LIMITS, Need, check_need
 from infra.executors import Executor
-from infra.io import atomic_write_json
+from infra.io import atomic_write_json, check_output_file
+from infra.rundir import run_folder
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary
 from servo_mj.robot.model import ModelFile, model_label, model_sha256, scene_path
 from servo_mj.robot.settings import PhysicsSettings
@@ -46,6 +52,8 @@ from servo_mj.robot.variant import describe, read_variant
 TABLE_FILE = "gait_table.json"
 FIGURE_FILE = "figure4.png"
 PARAMS_FILE = "gait_params.json"
+CALIBRATION_FILES = (TABLE_FILE, FIGURE_FILE, PARAMS_FILE)
+"""What a calibration writes into its folder besides ``settings.json``."""
 
 
 @dataclass(frozen=True)
@@ -93,6 +101,18 @@ def fitted_library(
     )
 
 
+def calibration_need(
+    settings: CalibrationSettings, fit: FitSettings | None, workers: int = 1
+) -> Need:
+    """Optimistic wall time of a calibration (16 gaits, and 15 fitted gaits × ``max_evals``
+    evaluations with a fit); memory is one physics process per worker."""
+    cycles = N_GAITS * (settings.settle_cycles + settings.cycles)
+    if fit is not None:
+        cycles += (N_GAITS - 1) * fit.max_evals * (fit.settle_cycles + fit.cycles)
+    speed = LIMITS.physics_cycles_per_s * max(1, workers)
+    return Need(max(1, workers) * LIMITS.physics_process_bytes, cycles / speed)
+
+
 def calibrate(
     out: str | Path,
     settings: CalibrationSettings = DEFAULTS,
@@ -108,6 +128,7 @@ def calibrate(
     on_cycle: CycleCallback | None = None,
     log: Callable[[str], None] | None = None,
     command: str = "",
+    force: bool = False,
 ) -> CalibrationResult:
     """Measure the 16 gaits (after fitting them when ``fit`` is given) and write the table.
 
@@ -116,13 +137,37 @@ def calibrate(
     the shipped gait parameters. ``params_out``: a second place for the fitted parameters (with
     ``fit`` only). ``world`` gives the capacitor bank that converts energy to voltage drop. The
     gaits (and fits) are runs of ``executor`` (default ``make_executor(None, workers)``; with
-    callbacks, here). Raises ``infra.executors.BatchError`` naming the gaits whose simulation
-    blew up, ``FileNotFoundError`` for a missing model file (nothing is written then).
+    callbacks, here). Raises ``infra.errors.InputError`` subclasses for sizes the machine
+    cannot give, a missing model file or an unusable ``out``/``params_out`` (before any
+    physics), ``infra.executors.BatchError`` naming the gaits whose simulation blew up
+    (nothing is written then).
     """
-    out = Path(out)
-    t0 = time.perf_counter()
     scene_path(settings.model)  # a missing model file fails before any physics
     library = library if library is not None else GaitLibrary.load()
+    check_need(calibration_need(settings, fit, workers), "the calibration's cycles and --fit-evals")
+    if fit is not None and params_out is not None:
+        check_output_file(params_out, option="--params-out")
+    record = {
+        "CalibrationSettings": settings.to_dict(),
+        "FitSettings": None if fit is None else fit.__dict__ | {"step": list(fit.step)},
+        "gait_params": library.to_dict(),
+        "model_sha256": model_sha256(settings.model),
+    }
+    with run_folder(out, record, owned=CALIBRATION_FILES, resumable=False, force=force):
+        return _measure(
+            Path(out), settings, library, fit, params_out, workers=workers, executor=executor,
+            model=model, world=world, on_frame=on_frame, on_cycle=on_cycle, log=log,
+            command=command,
+        )  # fmt: skip
+
+
+def _measure(
+    out: Path, settings: CalibrationSettings, library: GaitLibrary, fit: FitSettings | None,
+    params_out: str | Path | None, *, workers: int, executor: Executor | None,
+    model: mujoco.MjModel | None, world: WorldSettings | None, on_frame: FrameCallback | None,
+    on_cycle: CycleCallback | None, log: Callable[[str], None] | None, command: str,
+) -> CalibrationResult:  # fmt: skip
+    t0 = time.perf_counter()
     if fit is not None:
         fit = dataclasses.replace(fit, model=settings.model)
         library = fitted_library(library, fit, workers=workers, executor=executor, log=log)
@@ -196,8 +241,10 @@ def table_document(
 
 
 __all__ = [
+    "CALIBRATION_FILES",
     "CalibrationResult",
     "calibrate",
+    "calibration_need",
     "fitted_library",
     "model_document",
     "table_document",

@@ -12,6 +12,7 @@ ctrlrange.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -142,11 +143,13 @@ def fit_library(
     todo = [g for g in (gaits if gaits is not None else range(N_GAITS)) if g not in FIXED_GAITS]
     outcomes: list = [None] * len(todo)
     ex = executor or make_executor(None, workers)
-    for i, outcome in ex.imap(_fit_one, [(g, library, settings) for g in todo]):
-        outcomes[i] = outcome
-        if log is not None and not isinstance(outcome, Failed):
-            g, _, mean, n = outcome.value
-            log(f"gait {g}: {n} evaluations, measured {np.round(mean, 2)}")
+    jobs = [(g, library, settings) for g in todo]
+    with contextlib.closing(ex.imap(_fit_one, jobs)) as finished:  # stops workers on Ctrl-C
+        for i, outcome in finished:
+            outcomes[i] = outcome
+            if log is not None and not isinstance(outcome, Failed):
+                g, _, mean, n = outcome.value
+                log(f"gait {g}: {n} evaluations, measured {np.round(mean, 2)}")
     report = {}
     for g, row, mean, n in values_or_raise(outcomes, [f"gait {g}" for g in todo]):
         library = library.with_row(g, row)

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from infra.io import atomic_write_text
+from infra.errors import InputError
+from infra.io import ReadError, atomic_write_text, read_text
 
 GENE_BITS = 30
 """Bits per gene: 2 loop bits + 4 instructions of 7 bits."""
@@ -66,7 +67,7 @@ SENSOR_NAMES = (
 )
 
 
-class ChromosomeError(ValueError):
+class ChromosomeError(InputError, ValueError):
     """Malformed chromosome text or bits; ``line`` is the 1-based line (0 if none)."""
 
     def __init__(self, reason: str, *, line: int = 0, name: str = "<string>") -> None:
@@ -161,12 +162,12 @@ def format_chromosome(bits: np.ndarray) -> str:
 
 
 def read_chromosome(path: str | Path) -> np.ndarray:
-    """Read a chromosome text file (``#`` header comments allowed) as uint8 (G, 30)."""
-    path = Path(path)
+    """Read a chromosome text file (``#`` header comments allowed) as uint8 (G, 30); any
+    problem with the file (``infra.io.read_text``) or its text is a ``ChromosomeError``."""
     try:
-        text = path.read_text()
-    except FileNotFoundError as exc:
-        raise ChromosomeError("no such chromosome file", name=str(path)) from exc
+        text = read_text(path, what="chromosome file")
+    except ReadError as exc:
+        raise ChromosomeError(exc.reason, name=str(path)) from exc
     return parse_chromosome(text, name=str(path))
 
 

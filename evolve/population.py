@@ -23,7 +23,7 @@ from __future__ import annotations
 import csv
 import io
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,11 +31,12 @@ from typing import Any
 import numpy as np
 
 from evolve import ga as gaops
-from evolve.checkpoint import check_settings, read_npz, write_npz
+from evolve.checkpoint import check_array, check_settings, read_npz, write_npz
 from evolve.codec import GENE_BITS, SECTION_GENES
 from evolve.interpreter import END_DOCKED
 from evolve.settings import GASettings, WorldSettings
 from evolve.table import GaitTable
+from infra.errors import InputError
 from infra.io import atomic_write_text
 
 CHECKPOINT_EVERY = 16
@@ -52,7 +53,7 @@ OnGeneration = Callable[[dict[str, Any]], None]
 the ``HISTORY_COLUMNS`` of the generation just evaluated."""
 
 
-class StageError(RuntimeError):
+class StageError(InputError, RuntimeError):
     """A stage cannot run or resume (bad settings, corrupt or mismatched checkpoint)."""
 
 
@@ -109,12 +110,37 @@ def evaluate_sections(
     return run_fit[inverse], ev, first, inverse
 
 
-def stage_seeds(seed: int, stage: str, populations: int) -> tuple[np.random.SeedSequence, list]:
-    """(test-start seed, [population seeds]) of a stage: ``SeedSequence([seed, stage id])
-    .spawn(populations + 1)``; child 0 draws the shared test starts, child 1 + k drives
-    population k, so a population's numbers do not depend on how many populations run."""
-    children = np.random.SeedSequence([int(seed), STAGE_IDS[stage]]).spawn(populations + 1)
-    return children[0], children[1:]
+class SpawnedSeeds(Sequence):
+    """Children ``first``, ``first + 1``, ... of a SeedSequence, made when asked for: equal to
+    ``root.spawn(...)``'s but costing nothing up front (a billion populations do not hang)."""
+
+    def __init__(self, root: np.random.SeedSequence, first: int, count: int) -> None:
+        self.root, self.first, self.count = root, first, count
+
+    def __len__(self) -> int:
+        return self.count
+
+    def __getitem__(self, k: Any) -> Any:
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(self.count))]
+        if not -self.count <= k < self.count:
+            raise IndexError(k)
+        r = self.root
+        child = self.first + k % self.count
+        return np.random.SeedSequence(
+            r.entropy, spawn_key=(*r.spawn_key, child), pool_size=r.pool_size
+        )
+
+
+def stage_seeds(
+    seed: int, stage: str, populations: int
+) -> tuple[np.random.SeedSequence, SpawnedSeeds]:
+    """(test-start seed, population seeds) of a stage: the children of
+    ``SeedSequence([seed, stage id])``, as ``.spawn(populations + 1)`` gives them; child 0 draws
+    the shared test starts, child 1 + k drives population k, so a population's numbers do not
+    depend on how many populations run."""
+    root = np.random.SeedSequence([int(seed), STAGE_IDS[stage]])
+    return SpawnedSeeds(root, 0, 1)[0], SpawnedSeeds(root, 1, populations)
 
 
 def save_generations(ga: GASettings) -> tuple[int, ...]:
@@ -195,7 +221,14 @@ class PopulationRun:
         data = read_npz(self.final, "final population file", ("best", "history", "settings"),
                         error=StageError)  # fmt: skip
         check_settings(data["settings"], self.settings_text, self.final, error=StageError)
-        self.result = PopulationResult(self.k, data["best"].astype(np.uint8), data["history"])
+        best = self._array(data, "best", (SECTION_GENES, GENE_BITS), self.final, bits=True)
+        history = self._array(data, "history", (self.ga.generations + 1, len(HISTORY_COLUMNS)),
+                              self.final)  # fmt: skip
+        self.result = PopulationResult(self.k, best.astype(np.uint8), history)
+
+    @staticmethod
+    def _array(data: dict, key: str, shape: tuple, path: Path, bits: bool = False) -> np.ndarray:
+        return check_array(data, key, shape, path, bits=bits, error=StageError)
 
     def _load_checkpoint(self) -> None:
         keys = ("population", "generation", "rng_state", "history", "settings")
@@ -203,17 +236,20 @@ class PopulationRun:
         check_settings(data["settings"], self.settings_text, self.ckpt, error=StageError)
         try:
             self.rng.bit_generator.state = json.loads(str(data["rng_state"]))
-        except (ValueError, TypeError, KeyError) as exc:
+        except (ValueError, TypeError, KeyError, OverflowError, RecursionError) as exc:
             raise StageError(f"{self.ckpt}: corrupt checkpoint (rng state: {exc})") from exc
-        self.pop = data["population"].astype(np.uint8)
-        self.generation = int(data["generation"])
-        self.history = [tuple(row) for row in data["history"].tolist()]
         shape = (self.ga.population_size, SECTION_GENES, GENE_BITS)
-        if self.pop.shape != shape or len(self.history) != self.generation:
+        self.pop = self._array(data, "population", shape, self.ckpt, bits=True).astype(np.uint8)
+        gen = self._array(data, "generation", (), self.ckpt)
+        history = self._array(data, "history", (-1, len(HISTORY_COLUMNS)), self.ckpt)
+        g = int(gen) if gen.dtype.kind in "iu" else -1
+        if not 0 <= g <= self.ga.generations or len(history) != g:
             raise StageError(
-                f"{self.ckpt}: corrupt checkpoint (population {self.pop.shape}, "
-                f"gen {self.generation})"
+                f"{self.ckpt}: corrupt checkpoint (generation {gen}, {len(history)} history "
+                "rows); delete it to start over"
             )
+        self.generation = g
+        self.history = [tuple(row) for row in history.tolist()]
 
     def _checkpoint(self) -> None:
         write_npz(

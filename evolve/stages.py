@@ -4,6 +4,11 @@ Each stage evolves ``ga.populations`` independent populations of 8-gene sections
 (``evolve.population``: the generation loop, checkpoints, seeds), then tests the finalists:
 navigation picks its section, coverage measures Figure 9 and draws Figures 8 and 10.
 
+Before anything is allocated or written, a stage checks that its sizes fit the machine
+(``stage_need``, ``infra.bounds``) and takes its folder (``infra.rundir.run_folder``: an OS
+lock, ``settings.json`` as the ownership record; ``resume`` continues a run with the same
+settings, ``force`` deletes only the stage's own files, ``STAGE_FILES``, and starts afresh).
+
 Layout under the run folder ``out`` (the CLI's ``--out DIR``)::
 
     navigation/settings.json   navigation/best.txt   navigation/summary.json
@@ -16,11 +21,14 @@ Layout under the run folder ``out`` (the CLI's ``--out DIR``)::
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
 import os
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +39,7 @@ from evolve.codec import GENE_BITS, SECTION_GENES, write_chromosome
 from evolve.interpreter import END_DOCKED
 from evolve.population import (
     CHECKPOINT_EVERY,
+    HISTORY_COLUMNS,
     OnGeneration,
     PopulationJob,
     PopulationResult,
@@ -46,8 +55,10 @@ from evolve.population import (
 from evolve.settings import GASettings, WorldSettings, navigation_ga_settings, settings_json
 from evolve.starts import coverage_starts, navigation_starts
 from evolve.table import GaitTable
+from infra.bounds import LIMITS, Limits, Need, check_int, check_need
 from infra.executors import BatchError, Executor, Failed, RayExecutor, values_or_raise
 from infra.io import atomic_write_json, atomic_write_text
+from infra.rundir import run_folder
 
 FIGURE10_START = (415.0, 252.0, 98.0)
 """Start pose (x, y, heading) of the Figure 10 tracks [paper]."""
@@ -55,6 +66,13 @@ DEFAULT_WORLD = WorldSettings()
 """The SPEC's world (frozen, shared default)."""
 DEFAULT_GA = GASettings()
 """The SPEC's coverage GA settings (frozen, shared default)."""
+STAGE_FILES = (
+    "summary.json", "best.txt", "best_pop*.txt", "history_pop*.csv", "figure9.*",
+    "figure10_pop*.png", "populations/pop*_gen*.npz", "checkpoints/pop*.npz",
+)  # fmt: skip
+"""Every file a stage writes in its folder besides ``settings.json``: what ``force`` deletes."""
+RUN_RESULT_BYTES = 64
+"""Memory of one run's results in an evaluation (5 int64 + 3 float64), bytes."""
 
 # --------------------------------------------------------------------------- fitness
 
@@ -121,20 +139,55 @@ def _settings_doc(
     return doc
 
 
-def _check_ga(ga: GASettings) -> None:
-    if ga.populations < 1:
-        raise StageError(f"populations must be ≥ 1, got {ga.populations}")
-    if ga.population_size < 2:
-        raise StageError(f"population size must be ≥ 2, got {ga.population_size}")
-    if ga.generations < 1:
-        raise StageError(f"generations must be ≥ 1, got {ga.generations}")
-    if ga.starts_per_generation < 1 or ga.test_starts < 1:
-        raise StageError("starts per generation and test starts must be ≥ 1")
+def stage_need(ga: GASettings, max_steps: int, limits: Limits = LIMITS) -> Need:
+    """Peak memory and (optimistic) wall time of a stage: populations run one after another;
+    each evaluates population × starts runs of at most ``max_steps`` steps per generation,
+    then the finalists (and, for Figure 9, every save generation's best) on the test starts."""
+    p, s = ga.population_size, ga.starts_per_generation
+    saves = len(save_generations(ga))
+    genome = 2 * SECTION_GENES * GENE_BITS  # a section and its full chromosome
+    histories = ga.populations * (ga.generations + 1) * len(HISTORY_COLUMNS) * 8
+    tests = max(ga.populations, saves) * ga.test_starts * RUN_RESULT_BYTES
+    memory = p * (4 * genome + 2 * s * RUN_RESULT_BYTES) + histories + tests
+    runs = ga.populations * ((ga.generations + 1) * p * s + (1 + saves) * ga.test_starts)
+    return Need(memory, runs * max_steps / limits.table_steps_per_s)
+
+
+def check_ga(ga: GASettings, max_steps: int) -> None:
+    """Refuse GA settings out of range or whose memory or time the machine cannot give."""
+    try:
+        check_int(ga.populations, "populations", lo=1)
+        check_int(ga.population_size, "population size", lo=2)
+        check_int(ga.generations, "generations", lo=1)
+        check_int(ga.starts_per_generation, "starts per generation", lo=1)
+        check_int(ga.test_starts, "test starts", lo=1)
+        check_int(ga.seed, "seed", lo=0)
+        what = (
+            f"{ga.populations} populations × {ga.population_size} individuals × "
+            f"{ga.generations} generations"
+        )
+        check_need(stage_need(ga, max_steps), what)
+    except ValueError as exc:
+        raise StageError(str(exc)) from exc
+
+
+@contextmanager
+def _stage_folder(
+    stage: Stage, folder: Path, table: GaitTable, ga: GASettings, world: WorldSettings,
+    resume: bool, force: bool,
+) -> Iterator[dict[str, Any]]:  # fmt: skip
+    """Check the sizes, then hold the stage's folder (lock, ownership record) for the block;
+    yields the settings document."""
+    check_ga(ga, stage.max_steps)
+    doc = _settings_doc(stage, ga, world, table)
+    with run_folder(folder, doc, owned=STAGE_FILES, resume=resume, force=force):
+        yield doc
 
 
 def _run_populations(
     stage: Stage,
     folder: Path,
+    doc: dict[str, Any],
     *,
     table: GaitTable,
     ga: GASettings,
@@ -142,13 +195,10 @@ def _run_populations(
     resume: bool,
     on_generation: OnGeneration | None,
     executor: Executor | None = None,
-) -> tuple[list[PopulationResult], np.ndarray, dict[str, Any]]:
-    """Evolve all populations of a stage; returns (results, test starts, settings doc)."""
-    _check_ga(ga)
-    folder.mkdir(parents=True, exist_ok=True)
-    doc = _settings_doc(stage, ga, world, table)
+) -> tuple[list[PopulationResult], np.ndarray]:
+    """Evolve all populations of a stage in its (claimed) folder; returns (results, test
+    starts)."""
     settings_text = json.dumps(doc, sort_keys=True)
-    atomic_write_json(folder / "settings.json", doc)
     test_seq, pop_seqs = stage_seeds(ga.seed, stage.name, ga.populations)
     kwargs = [
         dict(seed_seq=pop_seqs[k], table=table, ga=ga, world=world,
@@ -166,7 +216,7 @@ def _run_populations(
         results = _populations_on(executor, jobs, on_generation)
     test_rng = np.random.Generator(np.random.PCG64(test_seq))
     test_starts = stage.starts(test_rng, ga.test_starts, world)
-    return results, test_starts, doc
+    return results, test_starts
 
 
 def _kernel_threads(executor: Executor) -> int:
@@ -184,14 +234,15 @@ def _populations_on(
     """Each population as one run of ``executor``; ``on_generation`` hears a population's
     generations when it finishes."""
     outcomes: list[Any] = [None] * len(jobs)
-    for k, outcome in executor.imap(run_population_job, jobs):
-        outcomes[k] = outcome
-        if on_generation is not None and not isinstance(outcome, Failed):
-            res, job = outcome.value, jobs[k]
-            for row in res.history:
-                on_generation(
-                    generation_record(job.stage.name, k, job.kwargs["ga"].generations, row)
-                )
+    with contextlib.closing(executor.imap(run_population_job, jobs)) as finished:
+        for k, outcome in finished:
+            outcomes[k] = outcome
+            if on_generation is not None and not isinstance(outcome, Failed):
+                res, job = outcome.value, jobs[k]
+                for row in res.history:
+                    on_generation(
+                        generation_record(job.stage.name, k, job.kwargs["ga"].generations, row)
+                    )
     try:
         return values_or_raise(outcomes, [f"population {k}" for k in range(len(jobs))])
     except BatchError as exc:
@@ -208,6 +259,7 @@ def run_navigation(
     ga: GASettings | None = None,
     world: WorldSettings = DEFAULT_WORLD,
     resume: bool = False,
+    force: bool = False,
     on_generation: OnGeneration | None = None,
     executor: Executor | None = None,
 ) -> dict[str, Any]:
@@ -224,19 +276,23 @@ def run_navigation(
     fitness, dock rate, final training fitness), ``wall_s``, ``settings``.
     """
     ga = navigation_ga_settings() if ga is None else ga
-    t0 = time.perf_counter()
-    folder = Path(out) / "navigation"
     stage = navigation_stage(world)
-    results, test_starts, doc = _run_populations(
-        stage,
-        folder,
-        table=table,
-        ga=ga,
-        world=world,
-        resume=resume,
+    folder = Path(out) / "navigation"
+    with _stage_folder(stage, folder, table, ga, world, resume, force) as doc:
+        return _navigation(stage, folder, doc, table, ga, world, resume, on_generation, executor)
+
+
+def _navigation(
+    stage: Stage, folder: Path, doc: dict[str, Any], table: GaitTable, ga: GASettings,
+    world: WorldSettings, resume: bool, on_generation: OnGeneration | None,
+    executor: Executor | None,
+) -> dict[str, Any]:  # fmt: skip
+    t0 = time.perf_counter()
+    results, test_starts = _run_populations(
+        stage, folder, doc, table=table, ga=ga, world=world, resume=resume,
         on_generation=on_generation,
         executor=executor,
-    )
+    )  # fmt: skip
     bests = np.stack([r.best for r in results])
     run_fit, ev, _, inverse = evaluate_sections(bests, test_starts, stage, table, world)
     docked = (np.asarray(ev.end) == END_DOCKED)[inverse]
@@ -314,6 +370,7 @@ def run_coverage(
     ga: GASettings = DEFAULT_GA,
     world: WorldSettings = DEFAULT_WORLD,
     resume: bool = False,
+    force: bool = False,
     on_generation: OnGeneration | None = None,
     executor: Executor | None = None,
 ) -> dict[str, Any]:
@@ -326,22 +383,26 @@ def run_coverage(
     per generation), ``final_mean_inner_percent``, ``final_inner_percent`` (per population),
     ``figure10`` (squares, docks, end per population), ``wall_s``, ``settings``.
     """
+    out = Path(out)
+    stage = coverage_stage(world, navigation)
+    with _stage_folder(stage, out / "coverage", table, ga, world, resume, force) as doc:
+        return _coverage(stage, out, doc, table, ga, world, resume, on_generation, executor)
+
+
+def _coverage(
+    stage: Stage, out: Path, doc: dict[str, Any], table: GaitTable, ga: GASettings,
+    world: WorldSettings, resume: bool, on_generation: OnGeneration | None,
+    executor: Executor | None,
+) -> dict[str, Any]:  # fmt: skip
     from evolve import figures
 
     t0 = time.perf_counter()
-    out = Path(out)
     folder = out / "coverage"
-    stage = coverage_stage(world, navigation)
-    results, test_starts, doc = _run_populations(
-        stage,
-        folder,
-        table=table,
-        ga=ga,
-        world=world,
-        resume=resume,
+    results, test_starts = _run_populations(
+        stage, folder, doc, table=table, ga=ga, world=world, resume=resume,
         on_generation=on_generation,
         executor=executor,
-    )
+    )  # fmt: skip
     gens = save_generations(ga)
     inner, squares = figure9_test(folder, stage, table, world, gens, ga.populations, test_starts)
     mean = inner.mean(axis=0)
@@ -431,12 +492,15 @@ def _write_figure9(folder: Path, gens: tuple[int, ...], inner: np.ndarray, sq: n
 
 __all__ = [
     "navigation_section",
+    "STAGE_FILES",
     "StageError",
+    "check_ga",
     "run_navigation",
     "run_coverage",
     "navigation_run_fitness",
     "coverage_run_fitness",
     "evaluate_sections",
+    "stage_need",
     "stage_seeds",
     "CHECKPOINT_EVERY",
 ]

@@ -8,6 +8,9 @@ A calibration file may also carry, per gait, the electrical energy of one cycle 
 capacitor voltage drop it causes (``ENERGY_COLUMNS``: ``energy_J``, ``energy_J_std``, ``dV``,
 ``dV_std``; J and V, mean and per-cycle std), measured by ``calibration.energy``: the
 ``table`` power model (``evolve.settings.with_table_power``) charges each gait its ``dV``.
+
+Every table is checked against physical bounds (``MAX_STEP_CM``, ``MAX_TURN_DEG``): one gait
+cycle moves the robot centimetres and turns it less than half a turn.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from evolve.settings import WorldSettings, with_table_power
+from infra.errors import InputError
 from infra.io import read_json
 
 N_GAITS = 16
@@ -51,6 +55,13 @@ PAPER_TABLE = np.array(
 )
 PAPER_TABLE.setflags(write=False)
 
+MAX_STEP_CM = 100.0
+"""Largest |F| and |T| a gait table may hold, cm per gait cycle [chosen: generous, 8× Figure
+4's largest, 12.4 cm, so that synthetic test tables fit; the same table in mm is refused]."""
+MAX_TURN_DEG = 180.0
+"""|dH| must stay below this, degrees per gait cycle [chosen]: beyond half a turn a heading
+change is ambiguous (Figure 4's largest is 27)."""
+COLUMNS = ("F", "T", "dH")
 
 ENERGY_COLUMNS = ("energy_J", "energy_J_std", "dV", "dV_std")
 """Columns of ``GaitTable.energy``: energy per cycle (J) and capacitor voltage drop per cycle
@@ -61,7 +72,7 @@ DV_STD = ENERGY_COLUMNS.index("dV_std")
 """Column of its per-cycle standard deviation."""
 
 
-class GaitTableError(ValueError):
+class GaitTableError(InputError, ValueError):
     """A gait table or gait-table file is malformed."""
 
 
@@ -90,8 +101,35 @@ def validate_table(values: Any, *, name: str = "gait table") -> np.ndarray:
     bad = np.argwhere(~np.isfinite(arr))
     if bad.size:
         g, c = bad[0]
-        raise GaitTableError(f"{name}: gait {g} has a non-finite {('F', 'T', 'dH')[c]}")
+        raise GaitTableError(f"{name}: gait {g} has a non-finite {COLUMNS[c]}")
+    over = np.abs(arr) > MAX_STEP_CM
+    over[:, 2] = np.abs(arr[:, 2]) >= MAX_TURN_DEG
+    bad = np.argwhere(over)
+    if bad.size:
+        g, c = bad[0]
+        bound = f"< {MAX_TURN_DEG:g}°" if c == 2 else f"≤ {MAX_STEP_CM:g} cm"
+        raise GaitTableError(
+            f"{name}: gait {g} has {COLUMNS[c]} = {arr[g, c]:g}, beyond the physical bound "
+            f"|{COLUMNS[c]}| {bound} of one gait cycle"
+        )
     return np.ascontiguousarray(arr)
+
+
+def _number(row: dict[str, Any], key: str, default: float | None = None) -> float:
+    """``row[key]`` as a float; a JSON number only (not a string or a boolean)."""
+    if key not in row and default is not None:
+        return default
+    v = row[key]
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise ValueError(f"{key} must be a number, got {v!r}")
+    return float(v)
+
+
+def _gait_number(row: dict[str, Any]) -> int:
+    g = row["gait"]
+    if isinstance(g, bool) or not isinstance(g, int):
+        raise ValueError(f"gait must be an integer 0-15, got {g!r}")
+    return g
 
 
 def table_from_json(doc: dict[str, Any], *, name: str = "gait table") -> GaitTable:
@@ -114,12 +152,18 @@ def table_from_json(doc: dict[str, Any], *, name: str = "gait table") -> GaitTab
     seen: set[int] = set()
     for i, row in enumerate(rows):
         try:
-            g = int(row["gait"])
-            ftdh = [float(row[k]) for k in ("F", "T", "dH")]
-            spread = [float(row.get(k + "_std", math.nan)) for k in ("F", "T", "dH")]
-            power = [float(row[k]) for k in ENERGY_COLUMNS] if has_energy else None
-        except (KeyError, TypeError, ValueError) as exc:
-            raise GaitTableError(f"{name}: row {i} is malformed ({exc!r})") from exc
+            if not isinstance(row, dict):
+                raise TypeError(f"a row is an object {{gait, F, T, dH}}, got {row!r:.40}")
+            g = _gait_number(row)
+            ftdh = [_number(row, k) for k in COLUMNS]
+            spread = [_number(row, k + "_std", math.nan) for k in COLUMNS]
+            power = [_number(row, k) for k in ENERGY_COLUMNS] if has_energy else None
+        except KeyError as exc:
+            raise GaitTableError(f"{name}: row {i} is malformed (no {exc})") from exc
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise GaitTableError(f"{name}: row {i} is malformed ({exc})") from exc
+        if any(not (v >= 0) for v in spread if not math.isnan(v)):
+            raise GaitTableError(f"{name}: row {i} has a negative spread (_std)")
         if not 0 <= g < N_GAITS:
             raise GaitTableError(f"{name}: row {i} names gait {g}, outside 0-15")
         values[g], std[g] = ftdh, spread

@@ -19,6 +19,11 @@ depend on the executor: each run carries its own seeds.
 
 Ray is an optional dependency (``pip install -e ".[ray]"``), imported only when a Ray
 executor runs its first batch.
+
+Interrupts: worker processes ignore Ctrl-C from birth (they are started inside
+``spawning()``); the main process gets the ``KeyboardInterrupt``, cancels the runs not
+started and terminates the workers before it re-raises (``process_pool``), so Ctrl-C stops a
+batch at once, with no traceback from any worker.
 """
 
 from __future__ import annotations
@@ -26,12 +31,17 @@ from __future__ import annotations
 import logging
 import multiprocessing as mp
 import os
+import signal
+import threading
 import traceback
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Protocol
+
+from infra.errors import InputError
 
 EXECUTOR_SPECS = ("serial", "process", "ray", "ray:ADDRESS")
 """The executor specs ``make_executor`` accepts (ADDRESS: a Ray cluster's address)."""
@@ -65,7 +75,7 @@ class BatchError(RuntimeError):
         self.failures = failures
 
 
-class ExecutorError(RuntimeError):
+class ExecutorError(InputError, RuntimeError):
     """An executor cannot start: Ray missing, or its cluster cannot be joined."""
 
 
@@ -76,8 +86,66 @@ def _call(fn: Callable[[Any], Any], item: Any) -> Outcome:
         return Failed(f"{type(exc).__name__}: {exc}", traceback.format_exc())
 
 
+def _ignore_interrupts() -> None:
+    """Worker initializer: Ctrl-C is the main process's to handle; SIGTERM (from ``_stop``)
+    ends a worker at once, even one forked from a process with its own SIGTERM handler."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@contextmanager
+def spawning() -> Iterator[None]:
+    """Start worker processes (submit to a pool) in this block: they inherit an ignored
+    SIGINT from birth, before their initializer runs. A Ctrl-C within the block is dropped."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old if old is not None else signal.SIG_DFL)
+
+
+def _stop(pool: ProcessPoolExecutor, timeout_s: float = 5.0) -> None:
+    """Cancel the runs not started and terminate the workers (SIGTERM, then SIGKILL)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        p.terminate()
+    for p in procs:
+        p.join(timeout_s)
+        if p.is_alive():
+            p.kill()
+            p.join(timeout_s)
+
+
+@contextmanager
+def process_pool(
+    workers: int,
+    mp_context: Any = None,
+    *,
+    initializer: Callable[..., None] = _ignore_interrupts,
+    initargs: tuple = (),
+) -> Iterator[ProcessPoolExecutor]:
+    """A ``ProcessPoolExecutor`` whose workers ignore Ctrl-C (``initializer`` must call
+    ``_ignore_interrupts``) and are terminated when the block ends with an exception (Ctrl-C,
+    SIGTERM as ``KeyboardInterrupt``, an error)."""
+    pool = ProcessPoolExecutor(
+        max_workers=workers, mp_context=mp_context, initializer=initializer, initargs=initargs
+    )
+    try:
+        yield pool
+    except BaseException:
+        _stop(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
 class Executor(Protocol):
-    """Runs ``fn`` over ``items``, yielding ``(index, outcome)`` as each finishes."""
+    """Runs ``fn`` over ``items``, yielding ``(index, outcome)`` as each finishes. ``imap``
+    returns a generator: closing it (``contextlib.closing``) stops the runs still going, so a
+    caller interrupted between two outcomes leaves no worker behind."""
 
     def imap(
         self, fn: Callable[[Any], Any], items: Sequence[Any]
@@ -99,7 +167,10 @@ _started: Any = None
 
 
 def _init_worker(started: Any) -> None:
+    """Pool initializer: ignore Ctrl-C (``_ignore_interrupts``), then keep the queue on which
+    the worker announces each item it starts."""
     global _started
+    _ignore_interrupts()
     _started = started
 
 
@@ -127,13 +198,11 @@ class ProcessExecutor:
         started = ctx.SimpleQueue()
         broken: list[int] = []
         ran: set[int] = set()  # items a worker has started (drained often: a pipe is finite)
-        pool = ProcessPoolExecutor(
-            max_workers=n, mp_context=ctx, initializer=_init_worker, initargs=(started,)
-        )
-        with pool:
-            futures: dict[Future, int] = {
-                pool.submit(_call_announced, fn, item, i): i for i, item in enumerate(items)
-            }
+        with process_pool(n, ctx, initializer=_init_worker, initargs=(started,)) as pool:
+            with spawning():
+                futures: dict[Future, int] = {
+                    pool.submit(_call_announced, fn, item, i): i for i, item in enumerate(items)
+                }
             waiting = set(futures)
             while waiting:
                 done, waiting = wait(waiting, return_when=FIRST_COMPLETED)
@@ -154,8 +223,10 @@ def _run_alone(fn: Callable[[Any], Any], item: Any, ctx: Any, tries: int) -> Out
     """``item`` in a fresh one-process pool, up to ``tries`` times while its worker dies."""
     for _ in range(tries):
         try:
-            with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as solo:
-                return solo.submit(_call, fn, item).result()
+            with process_pool(1, ctx) as solo:
+                with spawning():
+                    future = solo.submit(_call, fn, item)
+                return future.result()
         except BrokenProcessPool:
             continue
     return Failed(WORKER_DIED)
@@ -210,16 +281,20 @@ class RayExecutor:
         fn_ref = ray.put(fn)
         refs = {task.remote(fn_ref, item): i for i, item in enumerate(items)}
         pending = list(refs)
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            for ref in done:
-                try:
-                    outcome = ray.get(ref)
-                except ray.exceptions.WorkerCrashedError:
-                    outcome = Failed(WORKER_DIED)
-                except ray.exceptions.RayError as exc:  # node lost, out of memory, ...
-                    outcome = Failed(f"{type(exc).__name__}: {exc}")
-                yield refs[ref], outcome
+        try:
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                for ref in done:
+                    try:
+                        outcome = ray.get(ref)
+                    except ray.exceptions.WorkerCrashedError:
+                        outcome = Failed(WORKER_DIED)
+                    except ray.exceptions.RayError as exc:  # node lost, out of memory, ...
+                        outcome = Failed(f"{type(exc).__name__}: {exc}")
+                    yield refs[ref], outcome
+        finally:  # closed early (Ctrl-C, an error): stop the tasks still queued or running
+            for ref in pending:
+                ray.cancel(ref, force=True)
 
 
 def check_spec(spec: str) -> str:
@@ -286,6 +361,8 @@ __all__ = [
     "SerialExecutor",
     "check_spec",
     "make_executor",
+    "process_pool",
     "run_in_order",
+    "spawning",
     "values_or_raise",
 ]

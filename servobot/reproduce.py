@@ -11,9 +11,12 @@ validation resumes finalist by finalist)::
     5 report       DIR/REPORT.md                                      (always rewritten)
 
 Budgets live in ``ReproduceSettings`` (paper scale by default, ``quick_settings()`` for a
-first look). A folder made with other settings is refused with a message naming the stage
-and the differing fields, so results of different budgets never mix. Progress reaches the
-outside through ``log(message)`` and ``on_generation`` / ``on_run`` callbacks.
+first look). Before anything runs, the budgets are checked against the machine
+(``reproduce_need``) and the folder is taken (``infra.rundir``: an OS lock, ``settings.json``
+as the ownership record): a folder made with other settings is refused with a message naming
+the differing fields, so results of different budgets never mix; ``force`` deletes only the
+run's own files (``REPRODUCE_FILES``) and starts afresh. Progress reaches the outside through
+``log(message)`` and ``on_generation`` / ``on_run`` callbacks.
 """
 
 from __future__ import annotations
@@ -31,15 +34,23 @@ from typing import Any
 
 import numpy as np
 
-from calibration.calibrate import FIGURE_FILE, TABLE_FILE, calibrate
+from calibration.calibrate import (
+    CALIBRATION_FILES,
+    FIGURE_FILE,
+    TABLE_FILE,
+    calibrate,
+    calibration_need,
+)
 from evolve.codec import read_chromosome
 from evolve.population import OnGeneration
 from evolve.settings import WorldSettings, settings_json
-from evolve.stages import run_coverage, run_navigation
+from evolve.stages import STAGE_FILES, run_coverage, run_navigation, stage_need
 from evolve.starts import coverage_starts
 from evolve.table import GaitTable, load_table
+from infra.bounds import Need, check_need
 from infra.executors import Executor, make_executor
-from infra.io import atomic_write_json, atomic_write_text
+from infra.io import atomic_write_json, check_free_space, read_json
+from infra.rundir import RECORD_FILE, run_folder
 from servobot.recording import Recording, calibration_recorder, log_calibration_result
 from servobot.reproduce_report import write_report
 from servobot.reproduce_settings import (
@@ -50,7 +61,7 @@ from servobot.reproduce_settings import (
     quick_settings,
     stage_key,
 )
-from servobot.validate import ValidationError, validate
+from servobot.validate import VALIDATION_FILES, ValidationError, validate, validation_need
 
 VALIDATION_SEED_WORD = 2
 """Second entropy word of the validation starts' SeedSequence (stages use 0 and 1)."""
@@ -58,6 +69,15 @@ RECORDING_FILE = "calibration.rrd"
 """The calibration stage's recording of the 16 walks."""
 DONE = "done.json"
 """A stage's completion marker: its settings key, wall time and a summary."""
+REPRODUCE_FILES = (
+    "REPORT.md", "figure8.png", f"calibration/{RECORDING_FILE}",
+    *(f"{stage}/{f}" for stage in STAGES for f in (DONE, RECORD_FILE)),
+    *(f"calibration/{f}" for f in CALIBRATION_FILES),
+    *(f"{stage}/{f}" for stage in ("navigation", "coverage") for f in STAGE_FILES),
+    "validation/starts.json",
+    *(f"validation/pop*/{f}" for f in (DONE, RECORD_FILE, *VALIDATION_FILES)),
+)  # fmt: skip
+"""Every file a reproduction writes under its folder besides ``settings.json``."""
 
 
 # --------------------------------------------------------------------------- markers
@@ -65,15 +85,16 @@ DONE = "done.json"
 
 def read_done(folder: Path, key: dict[str, Any]) -> dict[str, Any] | None:
     """The stage's done record if it finished with these settings; None if not finished;
-    ``ReproduceError`` if it finished with other settings."""
+    ``ReproduceError`` if it finished with other settings or the marker is unreadable."""
     path = folder / DONE
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         return None
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise ReproduceError(f"{path}: unreadable stage marker ({exc}); delete it to redo") from exc
-    stored = doc.get("settings", {})
+    doc = read_json(path, what="stage marker", error=ReproduceError)
+    ok = isinstance(doc, dict) and isinstance(doc.get("settings"), dict)
+    ok = ok and isinstance(doc.get("info", {}), dict) and _is_number(doc.get("wall_s"))
+    if not ok:
+        raise ReproduceError(f"{path}: not a stage marker; delete it to redo the stage")
+    stored = doc["settings"]
     if stored != key:
         diff = sorted(k for k in set(stored) | set(key) if stored.get(k) != key.get(k))
         detail = ", ".join(f"{k}: {stored.get(k)!r} here, {key.get(k)!r} asked" for k in diff)
@@ -81,6 +102,10 @@ def read_done(folder: Path, key: dict[str, Any]) -> dict[str, Any] | None:
             f"{folder} was made with other settings ({detail}); use a fresh --out DIR"
         )
     return doc
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
 
 
 def write_done(folder: Path, key: dict[str, Any], wall_s: float, **extra: Any) -> None:
@@ -96,12 +121,14 @@ def write_done(folder: Path, key: dict[str, Any], wall_s: float, **extra: Any) -
     )
 
 
-def check_folder(out: Path, s: ReproduceSettings) -> None:
-    """Raise ``ReproduceError`` if any stage in ``out`` finished with other settings."""
-    for name in STAGES:
-        read_done(out / name, stage_key(s, name))
-    for sub in sorted((out / "validation").glob("pop*")):
-        read_done(sub, stage_key(s, "validation"))
+def reproduce_need(s: ReproduceSettings, world: WorldSettings, workers: int | None) -> Need:
+    """Peak memory and optimistic wall time of a whole reproduction (``infra.bounds.Need``)."""
+    need = calibration_need(s.calibration(), None)
+    need += stage_need(s.navigation_ga(), world.navigation_steps)
+    need += stage_need(s.coverage_ga(), world.coverage_steps)
+    for _ in range(s.coverage_populations):
+        need += validation_need(s.validate_starts, s.validate_max_steps, workers, True)[0]
+    return need
 
 
 # --------------------------------------------------------------------------- the pipeline
@@ -271,6 +298,7 @@ def reproduce(
     log: Callable[[str], None] | None = None,
     on_generation: OnGeneration | None = None,
     on_run: Callable[[dict[str, Any]], None] | None = None,
+    force: bool = False,
 ) -> dict[str, Any]:
     """Run (or resume) every stage into ``out``; return ``{"stages", "report", "wall_s"}``.
 
@@ -281,41 +309,48 @@ def reproduce(
     Each stage
     record says whether it ran now or was skipped as already done, and its wall time.
     ``on_generation`` (GA progress) and ``on_run`` (each finished validation run) are the
-    progress callbacks; ``log`` gets one line per stage event (default: stderr).
+    progress callbacks; ``log`` gets one line per stage event (default: stderr). ``force``
+    deletes the files of a run made with other settings in ``out`` and starts afresh.
     """
     out = Path(out)
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     s = resolve_settings(settings, quick=quick, seed=seed, validate_starts=validate_starts)
     world = world or WorldSettings()
+    check_need(reproduce_need(s, world, workers), "the reproduction's budgets")
     t_all = time.perf_counter()
-    check_folder(out, s)  # refuse a folder of other settings before writing anything
-    out.mkdir(parents=True, exist_ok=True)
     doc = {"ReproduceSettings": s.to_dict(), **json.loads(settings_json(world))}
-    atomic_write_text(out / "settings.json", json.dumps(doc, indent=2) + "\n")
-    ex = executor or make_executor(None, workers)
-    run = _Pipeline(out, s, world, ex, log, on_generation, on_run)
-    try:
-        table = run.calibration()
-        navigation = run.navigation(table)
-        run.coverage(table, navigation)
-        run.validation(table)
-    finally:  # the report says how far the run got, also when a stage failed
-        total = time.perf_counter() - t_all
+    with run_folder(out, doc, owned=REPRODUCE_FILES, resume=True, force=force):
+        disk = (
+            s.coverage_populations
+            * validation_need(s.validate_starts, s.validate_max_steps, workers, True)[1]
+        )
+        check_free_space(out, disk, what="the validation recordings")
+        ex = executor or make_executor(None, workers)
+        run = _Pipeline(out, s, world, ex, log, on_generation, on_run)
         try:
-            ncpu = os.cpu_count() or 1
-            report = write_report(out, s, world, run.stages, total_wall_s=total, ncpu=ncpu)
-            log(f"[report] {report}")
-        except Exception as exc:  # noqa: BLE001 - never mask the stage's own error
-            log(f"[report] could not be written: {exc}")
+            table = run.calibration()
+            navigation = run.navigation(table)
+            run.coverage(table, navigation)
+            run.validation(table)
+        finally:  # the report says how far the run got, also when a stage failed
+            total = time.perf_counter() - t_all
+            try:
+                ncpu = os.cpu_count() or 1
+                report = write_report(out, s, world, run.stages, total_wall_s=total, ncpu=ncpu)
+                log(f"[report] {report}")
+            except Exception as exc:  # noqa: BLE001 - never mask the stage's own error
+                log(f"[report] could not be written: {exc}")
     return {"stages": run.stages, "report": str(out / "REPORT.md"), "wall_s": round(total, 3)}
 
 
 __all__ = [
+    "REPRODUCE_FILES",
     "ReproduceError",
     "ReproduceSettings",
     "check_settings",
     "quick_settings",
     "reproduce",
+    "reproduce_need",
     "resolve_settings",
     "stage_key",
     "validation_starts",

@@ -9,13 +9,14 @@ from typing import Any
 
 from calibration.measure import CalibrationSettings
 from evolve.settings import GASettings, navigation_ga_settings
+from infra.errors import InputError
 from servo_mj.robot.model import model_sha256
 
 STAGES = ("calibration", "navigation", "coverage", "validation")
 """The stages of a reproduction, in order (the report is always rewritten)."""
 
 
-class ReproduceError(RuntimeError):
+class ReproduceError(InputError, RuntimeError):
     """The run folder cannot be used (other settings, missing inputs); the message says why."""
 
 

@@ -21,12 +21,18 @@ its table record and an ``error``, and the other runs are unaffected.
 
 With ``out_dir``: ``report.json``, ``report.md`` and ``tracks.npz`` (per run ``table_{k}`` and
 ``physics_{k}``: (steps + 1, 3) poses x, y cm, heading deg) are written atomically; with
-``rrd=True`` each run also writes ``run{k}.rrd`` (``servobot.recording``).
+``rrd=True`` each run also writes ``run{k}.rrd`` (``servobot.recording``). Before any run,
+the sizes are checked (``validation_need``) and ``out_dir`` is taken as a run folder
+(``infra.rundir``: a lock; a folder holding a validation with other inputs is refused unless
+``force``, which deletes only ``VALIDATION_FILES``). An interrupted run's recording is
+discarded, never left truncated at its final path.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -41,16 +47,26 @@ from evolve.interpreter import END_NAMES, run
 from evolve.settings import WorldSettings
 from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
+from infra.bounds import LIMITS, Need, check_int, check_need
+from infra.errors import InputError
 from infra.executors import Executor, Failed, make_executor
-from servo_mj.robot.model import ModelFile, model_label, model_sha256
+from infra.io import check_free_space
+from infra.rundir import run_folder
+from servo_mj.robot.model import ModelFile, ModelFileError, model_label, model_sha256
 from servo_mj.world.arena import ArenaSettings, default_robot, overlaps_station
 from servobot.validation_report import summarise, write_report
 
 MODE = "coverage"
 """Validation runs the full controller in coverage mode (SPEC §5)."""
+VALIDATION_FILES = ("report.json", "report.md", "tracks.npz", "run*.rrd")
+"""What a validation writes into its folder besides ``settings.json``."""
+RRD_BYTES_PER_STEP = 8000
+"""Disk space a recording takes per controller step, bytes [measured: 3.5–4 MB / 600]."""
+RUN_BYTES = 8192
+"""Memory of one run's job and record, bytes [estimate]; tracks are counted apart."""
 
 
-class ValidationError(ValueError):
+class ValidationError(InputError, ValueError):
     """Bad input to ``validate``: the message names the problem."""
 
 
@@ -145,7 +161,7 @@ def load_checked_table(spec: str, model: ModelFile = None) -> tuple[GaitTable, s
     try:
         table = load_table(spec)
         current = model_sha256(model)
-    except (GaitTableError, FileNotFoundError) as exc:
+    except (GaitTableError, ModelFileError) as exc:
         raise ValidationError(f"gait table: {exc}") from exc
     if spec == "paper":
         return table, None
@@ -232,9 +248,12 @@ def run_start(job: StartJob) -> dict[str, Any]:
             out["physics_partial"] = dict(last, wall_s=round(time.perf_counter() - t0, 4))
             if rec is not None:
                 rec.error(out["error"])
-    finally:
+    except BaseException:  # interrupted: no recording of a run that did not finish
         if rec is not None:
-            rec.close(out)
+            rec.close(save=False)
+        raise
+    if rec is not None:
+        rec.close(out)
     out["tracks"] = tracks
     return out
 
@@ -265,23 +284,43 @@ def check_starts(
     return [check_start(s, world, arena, name=f"start {k}") for k, s in enumerate(arr)]
 
 
+def validation_need(starts: int, steps: int, workers: int | None, rrd: bool) -> tuple[Need, int]:
+    """(memory and optimistic wall time, disk bytes of the recordings) of ``starts`` runs of
+    ``steps`` steps in both worlds with ``workers`` processes (None = one per core)."""
+    procs = min(starts, workers or os.cpu_count() or 1)
+    memory = starts * (RUN_BYTES + 2 * (steps + 1) * 24) + procs * LIMITS.physics_process_bytes
+    wall = starts * steps / (LIMITS.physics_cycles_per_s * procs)
+    return Need(memory, wall), (starts * (steps + 1) * RRD_BYTES_PER_STEP if rrd else 0)
+
+
+def _check_sizes(n: int, steps: int, workers: int | None, rrd: bool, seed: int) -> int:
+    """Seed, worker count, memory and time, before any run; returns the recordings' bytes."""
+    check_int(seed, "seed", lo=0)
+    if workers is not None:
+        check_int(workers, "workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    need, disk = validation_need(n, steps, workers, rrd)
+    check_need(need, f"{n} starts × {steps} steps")
+    return disk
+
+
 def _run_jobs(
     ex: Executor, jobs: list[StartJob], on_run: Callable[[dict[str, Any]], None] | None
 ) -> list[dict[str, Any]]:
     """Every job's record in start order; a worker that failed gives a record with its error."""
     runs: list[dict[str, Any]] = [{} for _ in jobs]
-    for k, outcome in ex.imap(run_start, jobs):
-        if isinstance(outcome, Failed):
-            x, y, h = jobs[k].start
-            rec: dict[str, Any] = {
-                "index": k, "start": {"x": x, "y": y, "h": h}, "table": None,
-                "physics": None, "error": outcome.message, "tracks": {},
-            }  # fmt: skip
-        else:
-            rec = outcome.value
-        runs[k] = rec
-        if on_run is not None:
-            on_run(rec)
+    with contextlib.closing(ex.imap(run_start, jobs)) as outcomes:  # stops workers on Ctrl-C
+        for k, outcome in outcomes:
+            if isinstance(outcome, Failed):
+                x, y, h = jobs[k].start
+                rec: dict[str, Any] = {
+                    "index": k, "start": {"x": x, "y": y, "h": h}, "table": None,
+                    "physics": None, "error": outcome.message, "tracks": {},
+                }  # fmt: skip
+            else:
+                rec = outcome.value
+            runs[k] = rec
+            if on_run is not None:
+                on_run(rec)
     return runs
 
 
@@ -302,6 +341,7 @@ def validate(
     model: ModelFile = None,
     on_run: Callable[[dict[str, Any]], None] | None = None,
     meta: dict[str, Any] | None = None,
+    force: bool = False,
 ) -> dict[str, Any]:
     """Run ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the table and physics.
 
@@ -313,7 +353,8 @@ def validate(
     the robot in physics (None = the shipped ServoBot, else a model file such as a
     ``servobot variant``; check the table against it with ``load_checked_table``).
     ``on_run(record)`` is called as each run finishes (progress). Returns the report (and
-    writes it into ``out_dir`` when given). Raises ``ValidationError`` on bad input.
+    writes it into ``out_dir`` when given). Raises ``infra.errors.InputError`` subclasses
+    (``ValidationError``, ``BoundsError``, ``RunDirError``, ...) on bad input, before any run.
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
@@ -325,6 +366,19 @@ def validate(
     if model is not None and not Path(model).is_file():
         raise ValidationError(f"robot model {model}: no such file")
     out = None if out_dir is None else Path(out_dir)
+    rrd = rrd and out is not None
+    steps = max_steps if max_steps is not None else world.coverage_steps
+    disk = _check_sizes(len(poses), steps, None if executor else workers, rrd, seed)
+    settings = {
+        "WorldSettings": _jsonable(world),
+        "ArenaSettings": _jsonable(arena),
+        "PhysicsSettings": _jsonable(physics) if physics is not None else "default",
+        "max_steps": steps,
+        "seed": seed,
+        "mode": MODE,
+        "model": model_label(model),
+        "model_sha256": model_sha256(model),
+    }
     jobs = [
         StartJob(
             index=k,
@@ -337,42 +391,50 @@ def validate(
             max_steps=max_steps,
             seed=seed,
             model=None if model is None else str(model),
-            rrd_path=str(out / f"run{k}.rrd") if (rrd and out is not None) else None,
+            rrd_path=str(out / f"run{k}.rrd") if rrd else None,
         )  # fmt: skip
         for k, p in enumerate(poses)
     ]
-    t0 = time.perf_counter()
-    runs = _run_jobs(executor or make_executor(None, workers), jobs, on_run)
-    wall = time.perf_counter() - t0
-    tracks = {f"{w}_{r['index']}": t for r in runs for w, t in r.pop("tracks", {}).items()}
-    report = {
+    head = {
         "chromosome": format_chromosome(arr),
         "table": {
             "source": getattr(table, "source", "array"),
             "values": values.tolist(),
             "meta": _jsonable(getattr(table, "meta", {})),
         },
-        "settings": {
-            "WorldSettings": _jsonable(world),
-            "ArenaSettings": _jsonable(arena),
-            "PhysicsSettings": _jsonable(physics) if physics is not None else "default",
-            "max_steps": max_steps if max_steps is not None else world.coverage_steps,
-            "seed": seed,
-            "mode": MODE,
-            "model": model_label(model),
-            "model_sha256": model_sha256(model),
-        },
+        "settings": settings,
         "meta": _jsonable(meta or {}),
-        "runs": runs,
-        "summary": summarise(runs, world, wall),
     }
-    if out is not None:
+    ex = executor or make_executor(None, workers)
+    if out is None:
+        return _run_all(jobs, ex, on_run, head, world)[0]
+    record = {"chromosome": head["chromosome"], "table": head["table"]["values"],
+              "starts": [list(p) for p in poses], "settings": settings, "rrd": rrd}  # fmt: skip
+    with run_folder(out, record, owned=VALIDATION_FILES, resumable=False, force=force):
+        check_free_space(out, disk, what="the recordings")
+        report, tracks = _run_all(jobs, ex, on_run, head, world)
         write_report(out, report, tracks)
     return report
 
 
+def _run_all(
+    jobs: list[StartJob],
+    ex: Executor,
+    on_run: Callable[[dict[str, Any]], None] | None,
+    head: dict[str, Any],
+    world: WorldSettings,
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """The report (``head`` + runs + summary) and the tracks by ``{world}_{index}``."""
+    t0 = time.perf_counter()
+    runs = _run_jobs(ex, jobs, on_run)
+    wall = time.perf_counter() - t0
+    tracks = {f"{w}_{r['index']}": t for r in runs for w, t in r.pop("tracks", {}).items()}
+    return head | {"runs": runs, "summary": summarise(runs, world, wall)}, tracks
+
+
 __all__ = [
     "MODE",
+    "VALIDATION_FILES",
     "StartJob",
     "ValidationError",
     "check_chromosome",
@@ -380,4 +442,5 @@ __all__ = [
     "load_checked_table",
     "run_start",
     "validate",
+    "validation_need",
 ]

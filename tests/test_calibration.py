@@ -90,7 +90,7 @@ def test_cli_fit_writes_parameters_where_asked_and_not_over_the_shipped_file(tmp
 
 def test_cli_bad_inputs_give_clear_errors(tmp_path, capsys) -> None:
     assert cli.main(["--cycles", "0", "--out", str(tmp_path)]) == 2
-    assert "--cycles must be >= 1" in capsys.readouterr().err
+    assert "--cycles must be an integer ≥ 1, got 0" in capsys.readouterr().err
     bad = tmp_path / "bad.json"
     doc = GaitLibrary.load().to_dict()
     doc["gaits"] = doc["gaits"][:3]

@@ -99,7 +99,7 @@ def test_bad_input_exits_2_with_a_message(tmp_path, capsys, args, message):
 def test_resume_with_other_settings_exits_2(run_dir, capsys):
     args = ["navigation", *TINY, "--generations", "6", "--seed", "5", "--out", str(run_dir)]
     assert cli.main([*args, "--resume"]) == 2
-    assert "different settings" in capsys.readouterr().err
+    assert "other settings (GASettings.seed: 0 there, 5 here)" in capsys.readouterr().err
 
 
 def test_evolve_help_needs_no_mujoco():
@@ -241,3 +241,13 @@ def test_trace_rrd_records_the_table_run(forward, tmp_path, capsys):
     assert rows[f"{table}/track"] == 5  # one segment per step, from the start
     assert rows[f"{table}/squares"] == 2  # squares 55 and 56 newly reached
     assert any(p.startswith(f"{table}/pose/ghost/torso/geoms/") for p in static)
+
+
+def test_stage_files_list_every_file_a_stage_writes(run_dir):
+    from evolve.stages import STAGE_FILES
+    from infra.rundir import LOCK_FILE, RECORD_FILE, owned_files
+
+    for stage in ("navigation", "coverage"):
+        folder = run_dir / stage
+        written = {p for p in folder.rglob("*") if p.is_file() and p.name != LOCK_FILE}
+        assert set(owned_files(folder, [*STAGE_FILES, RECORD_FILE])) == written

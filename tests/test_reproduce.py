@@ -12,6 +12,7 @@ import rerun as rr
 
 from evolve.codec import read_chromosome
 from evolve.table import load_table
+from infra.rundir import RunDirError
 from servobot.cli.reproduce import main
 from servobot.reproduce import (
     ReproduceError,
@@ -117,7 +118,7 @@ def test_other_settings_in_the_same_folder_are_refused(run_dir: tuple[Path, dict
     out, _ = run_dir
     other = dataclasses.replace(TINY, coverage_generations=3)
     report = (out / "REPORT.md").read_text()
-    with pytest.raises(ReproduceError, match="coverage_generations"):
+    with pytest.raises(RunDirError, match="coverage_generations: 2 there, 3 here"):
         reproduce(out, settings=other, workers=1, log=lambda _m: None)
     assert (out / "REPORT.md").read_text() == report  # nothing rewritten
 
@@ -155,3 +156,12 @@ def test_failed_stage_is_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     assert "| calibration |" in text and "failed: calibration failed (test)" in text
     assert "| navigation | — | not reached |" in text
     assert not (tmp_path / "calibration" / "done.json").exists()
+
+
+def test_force_would_delete_exactly_the_files_a_run_wrote(run_dir: tuple[Path, dict]) -> None:
+    from infra.rundir import LOCK_FILE, RECORD_FILE, owned_files
+    from servobot.reproduce import REPRODUCE_FILES
+
+    out, _ = run_dir
+    written = {p for p in out.rglob("*") if p.is_file() and p.name != LOCK_FILE}
+    assert set(owned_files(out, [*REPRODUCE_FILES, RECORD_FILE])) == written

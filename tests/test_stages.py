@@ -16,6 +16,7 @@ from evolve import starts as starts_mod
 from evolve.codec import read_chromosome
 from evolve.settings import GASettings, WorldSettings, navigation_ga_settings
 from evolve.table import load_table
+from infra.rundir import RunDirError
 
 WORLD = WorldSettings()
 TABLE = load_table("paper")
@@ -151,13 +152,16 @@ def test_corrupt_checkpoint_is_a_clear_error(tmp_path):
     with pytest.raises(stages.StageError, match=r"pop0\.npz: corrupt checkpoint"):
         stages.run_navigation(tmp_path, table=TABLE, ga=TINY, resume=True)
     ckpt.write_bytes(good)
-    with pytest.raises(stages.StageError, match="different settings"):
+    record = (tmp_path / "navigation/settings.json").read_text()
+    with pytest.raises(RunDirError, match="GASettings.seed: 3 there, 9 here"):
         stages.run_navigation(
             tmp_path,
             table=TABLE,
             ga=dataclasses.replace(TINY, seed=9),
             resume=True,
         )
+    assert (tmp_path / "navigation/settings.json").read_text() == record  # untouched
+    assert ckpt.read_bytes() == good
     np.savez(ckpt, population=np.zeros(3))  # a valid npz that lacks the resume state
     with pytest.raises(stages.StageError, match="missing"):
         stages.run_navigation(tmp_path, table=TABLE, ga=TINY, resume=True)

@@ -161,8 +161,8 @@ def test_cli_rrd_writes_one_recording_per_run(chromosome, tmp_path):
         (["--start", "10", "250", "0"], "kill zone"),
         (["--start", "600", "250", "0"], "outside the 500 x 500 arena"),
         (["--start", "470", "260", "270"], "overlaps the power-station block"),
-        (["--starts", "0"], "--starts must be at least 1"),
-        (["--workers", "0"], "--workers must be at least 1"),
+        (["--starts", "0"], "--starts must be an integer ≥ 1, got 0"),
+        (["--workers", "0"], "--workers must be an integer between 1 and"),
         (["--table", "nope.json"], "no such gait-table file"),
     ],
 )

@@ -16,6 +16,7 @@ from chromosome_text import chrom
 from calibration.measure import measure_gait
 from evolve.codec import write_chromosome
 from evolve.table import load_table
+from infra.errors import InputError
 from servo_mj.robot import constants as C
 from servo_mj.robot.model import load_robot, model_sha256
 from servo_mj.robot.variant import (
@@ -30,7 +31,7 @@ from servo_mj.robot.variant import (
 from servo_mj.world.arena import default_robot
 from servo_mj.world.physics_world import PhysicsWorld
 from servobot.cli import main as servobot
-from servobot.reproduce import ReproduceError, ReproduceSettings, reproduce
+from servobot.reproduce import ReproduceSettings, reproduce
 from servobot.validate import ValidationError, load_checked_table
 
 HEAVY = VariantParams(torso_mass_kg=1.14)
@@ -206,7 +207,7 @@ def test_reproduce_model_runs_the_whole_pipeline_for_the_variant(files, tmp_path
     assert f"Robot: {files['heavy']}" in (out / "REPORT.md").read_text()
     # the folder belongs to this model: the shipped robot may not resume into it
     shipped = dataclasses.replace(settings, model=None)
-    with pytest.raises(ReproduceError, match="other settings"):
+    with pytest.raises(InputError, match="other settings"):
         reproduce(out, settings=shipped, workers=1, log=lambda _m: None)
 
 

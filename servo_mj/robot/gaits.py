@@ -27,6 +27,7 @@ positive lift = foot up, on both sides). ``GaitLibrary.frames`` expands a row in
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from infra.errors import InputError
 from infra.io import read_json
 from servo_mj.robot.constants import LEGS, TRIPOD_A
 
@@ -45,6 +47,10 @@ STRIDE_RAD = 0.47
 """Half sweep of a full-stride stance, rad [assumed; feasibility study: 11.7 cm/cycle]."""
 LIFT_RAD = 0.35
 """Lift of a swinging leg, rad (about 2.8 cm foot clearance) [assumed]."""
+MAX_TARGET_RAD = math.pi
+"""Largest |servo target| a gait may command, rad [chosen: generous]. The joints reach
+±1.05 rad (thrust) and −0.6…0.8 rad (lift) and clamp targets beyond; a target past half a
+turn is not a gait but a broken parameter file."""
 
 # The 16-frame tripod pattern, one line per frame (100 ms each). A gait cycle starts and ends
 # in the home posture (all legs at 0, all feet down), as the paper defines a gait cycle: the
@@ -108,15 +114,28 @@ GAIT_KIND = {
 }
 
 
+class GaitParamsError(InputError, ValueError):
+    """A gait-parameter file or library is malformed; the message names it and the problem."""
+
+
 def check_gait(gait: Any) -> int:
     """Return ``gait`` as an int in 0-15 or raise ``ValueError`` naming it."""
     try:
+        if isinstance(gait, bool):
+            raise TypeError("a boolean")
         g = int(gait)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"gait must be an integer 0-15, got {gait!r}") from exc
     if g != gait or not 0 <= g < N_GAITS:
         raise ValueError(f"unknown gait {gait!r}: gaits are numbered 0-15")
     return g
+
+
+def _number(v: Any, key: str) -> float:
+    """A JSON number as a float (strings and booleans refused)."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise ValueError(f"{key} must be a number, got {v!r:.40}")
+    return float(v)
 
 
 def _leg_phase_matrix() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -143,11 +162,22 @@ class GaitLibrary:
         rows = {check_gait(g): tuple(float(v) for v in r) for g, r in dict(self.rows).items()}
         missing = sorted(set(range(N_GAITS)) - set(rows))
         if missing:
-            raise ValueError(f"gait library is missing gaits {missing}")
+            raise GaitParamsError(f"gait library is missing gaits {missing}")
         for g, r in rows.items():
             if len(r) != len(PARAM_NAMES) or not np.all(np.isfinite(r)):
-                raise ValueError(f"gait {g}: expected finite numbers {PARAM_NAMES}, got {r}")
+                raise GaitParamsError(f"gait {g}: expected finite numbers {PARAM_NAMES}, got {r}")
+        for name in ("stride_rad", "lift_rad"):
+            v = getattr(self, name)
+            if not 0.0 < v <= MAX_TARGET_RAD:
+                raise GaitParamsError(f"{name} must lie in (0, {MAX_TARGET_RAD:.4g}] rad, got {v}")
         object.__setattr__(self, "rows", rows)
+        for g in range(N_GAITS):
+            peak = float(np.abs(self.frames(g)).max())
+            if peak > MAX_TARGET_RAD:
+                raise GaitParamsError(
+                    f"gait {g} commands a servo target of {peak:.3g} rad, beyond "
+                    f"±{MAX_TARGET_RAD:.4g} rad"
+                )
 
     @classmethod
     def default(cls) -> GaitLibrary:
@@ -158,29 +188,38 @@ class GaitLibrary:
     def load(cls, path: str | Path | None = None) -> GaitLibrary:
         """Load gait parameters from JSON (default: the shipped fitted ``gait_params.json``)."""
         path = Path(path) if path is not None else PARAMS_JSON
-        doc = read_json(path, what="gait-parameter file")
+        doc = read_json(path, what="gait-parameter file", error=GaitParamsError)
         return cls.from_dict(doc, name=str(path))
 
     @classmethod
     def from_dict(cls, doc: Mapping[str, Any], *, name: str = "gait parameters") -> GaitLibrary:
-        """Parse the ``gait_params.json`` layout (inverse of ``to_dict``)."""
+        """Parse the ``gait_params.json`` layout (inverse of ``to_dict``); ``GaitParamsError``
+        naming ``name`` and the problem."""
         try:
-            rows = {int(r["gait"]): tuple(float(r[k]) for k in PARAM_NAMES) for r in doc["gaits"]}
-            stride, lift = float(doc["stride_rad"]), float(doc["lift_rad"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"{name}: malformed gait-parameter file ({exc!r})") from exc
-        if "legs" in doc and list(doc["legs"]) != list(LEGS):
-            raise ValueError(f"{name}: leg order {doc['legs']} is not {list(LEGS)}")
-        if "pattern" in doc and np.asarray(doc["pattern"], dtype=float).tolist() != [
-            list(r) for r in PATTERN
-        ]:
-            raise ValueError(f"{name}: fitted for a different tripod pattern; refit (--fit)")
+            if not isinstance(doc, Mapping) or not isinstance(doc.get("gaits"), list):
+                raise TypeError("not a gait-parameter file (no 'gaits' list)")
+            rows = {}
+            for r in doc["gaits"]:
+                g = check_gait(r["gait"]) if isinstance(r, Mapping) else None
+                if g is None or g in rows:
+                    raise ValueError(f"gait row {r!r:.60} is not a new gait 0-15")
+                rows[g] = tuple(_number(r[k], k) for k in PARAM_NAMES)
+            stride = _number(doc["stride_rad"], "stride_rad")
+            lift = _number(doc["lift_rad"], "lift_rad")
+        except KeyError as exc:
+            raise GaitParamsError(f"{name}: malformed gait-parameter file (no {exc})") from exc
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise GaitParamsError(f"{name}: malformed gait-parameter file ({exc})") from exc
+        if "legs" in doc and doc["legs"] != list(LEGS):
+            raise GaitParamsError(f"{name}: leg order {doc['legs']!r:.80} is not {list(LEGS)}")
+        if "pattern" in doc and doc["pattern"] != [list(r) for r in PATTERN]:
+            raise GaitParamsError(f"{name}: fitted for a different tripod pattern; refit (--fit)")
         skip = ("gaits", "stride_rad", "lift_rad", "legs", "pattern", "pattern_columns")
         meta = {k: v for k, v in doc.items() if k not in skip}
         try:
             return cls(rows, stride, lift, meta)
         except ValueError as exc:
-            raise ValueError(f"{name}: {exc}") from exc
+            raise GaitParamsError(f"{name}: {exc}") from exc
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready parameters: amplitudes, pattern, leg order and the 16 rows."""

@@ -8,7 +8,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from infra.errors import InputError
 from servo_mj.robot import constants as C
+
+
+class ModelFileError(InputError, ValueError):
+    """A robot model file that does not exist or does not compile; the message names it."""
+
 
 ModelFile = str | Path | None
 """Which robot: None = the shipped ServoBot (``models/servobot``), else the path of a complete
@@ -17,12 +23,12 @@ MJCF scene such as a ``servobot variant`` file (robot + floor + options in one f
 
 def scene_path(model: ModelFile = None) -> Path:
     """The calibration scene of ``model``: the shipped ``scene.xml`` or the given file, which
-    must exist (``FileNotFoundError`` naming it otherwise)."""
+    must exist (``ModelFileError`` naming it otherwise)."""
     if model is None:
         return C.SCENE_XML
     path = Path(model)
     if not path.is_file():
-        raise FileNotFoundError(f"robot model {path}: no such file")
+        raise ModelFileError(f"robot model {path}: no such file")
     return path
 
 
@@ -41,7 +47,7 @@ def load_robot(scene: bool = True, model: ModelFile = None) -> tuple[mujoco.MjMo
     try:
         compiled = mujoco.MjModel.from_xml_path(str(path))
     except ValueError as exc:
-        raise ValueError(f"robot model {path}: MuJoCo cannot compile it ({exc})") from exc
+        raise ModelFileError(f"robot model {path}: MuJoCo cannot compile it ({exc})") from exc
     data = mujoco.MjData(compiled)
     key = mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_KEY, "home")
     if key >= 0:

@@ -5,6 +5,9 @@ Parses the options and prints; ``calibration.calibrate.calibrate`` does the work
 ``DIR/gait_params.json`` and to ``--params-out`` (default: the shipped
 ``servo_mj/robot/data/gait_params.json``, where the gait library loads them from; with
 ``--model``, only ``DIR``: a variant's fit never replaces the shipped parameters unasked).
+Bad input exits 2 before any physics; ``--force`` replaces a calibration made with other
+settings in ``--out``; Ctrl-C exits 130 leaving earlier files untouched
+(``servobot.cli.runner``).
 """
 
 from __future__ import annotations
@@ -18,10 +21,15 @@ from calibration.calibrate import calibrate
 from calibration.fit import FitSettings
 from calibration.measure import DEFAULTS, CalibrationSettings
 from calibration.report import format_energy, format_table
+from infra.bounds import check_int, check_number
 from infra.executors import BatchError
+from infra.io import check_output_file
 from servo_mj.robot.bot import PhysicsError
-from servo_mj.robot.gaits import PARAMS_JSON, GaitLibrary
+from servo_mj.robot.gaits import MAX_TARGET_RAD, PARAMS_JSON, GaitLibrary
 from servobot.cli.options import add_executor_option, executor_from_args
+from servobot.cli.runner import EXIT_FAILED, Interrupted, command_line, run_command
+
+PROG = "servobot calibrate"
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -83,6 +91,11 @@ def _parser() -> argparse.ArgumentParser:
         help="robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)",
     )
     p.add_argument(
+        "--force",
+        action="store_true",
+        help="--out holds a calibration made otherwise: delete its files (only those) and redo",
+    )
+    p.add_argument(
         "--workers",
         type=int,
         default=min(2, os.cpu_count() or 1),
@@ -92,31 +105,21 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _check(args: argparse.Namespace) -> str | None:
-    if args.cycles < 1:
-        return f"--cycles must be >= 1, got {args.cycles}"
-    if args.settle_cycles < 0:
-        return f"--settle-cycles must be >= 0, got {args.settle_cycles}"
-    if not (args.noise >= 0.0) or args.noise == float("inf"):
-        return f"--noise must be a finite angle >= 0 rad, got {args.noise}"
-    if args.workers < 1:
-        return f"--workers must be >= 1, got {args.workers}"
-    if args.fit_evals < 1:
-        return f"--fit-evals must be >= 1, got {args.fit_evals}"
-    return None
+def _check(args: argparse.Namespace) -> None:
+    """Range checks of the options (``BoundsError`` naming the option)."""
+    check_int(args.cycles, "--cycles", lo=1)
+    check_int(args.settle_cycles, "--settle-cycles", lo=0)
+    check_int(args.seed, "--seed", lo=0)
+    check_number(args.noise, "--noise", lo=0.0, hi=MAX_TARGET_RAD, unit=" rad")
+    check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    check_int(args.fit_evals, "--fit-evals", lo=1)
+    if args.rrd is not None:
+        check_output_file(args.rrd, option="--rrd")
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
-    problem = _check(args)
-    if problem:
-        print(f"servobot calibrate: {problem}", file=sys.stderr)
-        return 2
-    try:
-        library = GaitLibrary.load(args.params)
-    except ValueError as exc:
-        print(f"servobot calibrate: {exc}", file=sys.stderr)
-        return 2
+def _run(args: argparse.Namespace, command: str) -> int:
+    _check(args)
+    library = GaitLibrary.load(args.params)
     settings = CalibrationSettings(
         cycles=args.cycles, settle_cycles=args.settle_cycles, seed=args.seed, noise_rad=args.noise,
         model=None if args.model is None else str(args.model),
@@ -131,15 +134,16 @@ def main(argv: list[str] | None = None) -> int:
             max_evals=args.fit_evals,
         )
         print(f"fitting 15 gaits ({args.workers} workers, <= {fit.max_evals} evaluations each)")
-    command = "servobot calibrate " + " ".join(sys.argv[1:] if argv is None else argv)
     params_out = args.params_out or (PARAMS_JSON if args.model is None else None)
     kwargs = dict(
         library=library,
         fit=fit,
         params_out=params_out,
-        executor=executor_from_args(args, "servobot calibrate"),
+        workers=args.workers,
+        executor=executor_from_args(args),
         log=lambda s: print("  " + s, flush=True),
         command=command,
+        force=args.force,
     )
     try:
         if args.rrd is None:
@@ -151,11 +155,8 @@ def main(argv: list[str] | None = None) -> int:
                 res = calibrate(args.out, settings, **calibration_recorder(rec, settings), **kwargs)
                 log_calibration_result(rec, res)
     except (PhysicsError, BatchError) as exc:
-        print(f"servobot calibrate: physics failed: {exc}", file=sys.stderr)
-        return 1
-    except (OSError, ValueError) as exc:  # a missing or broken --model file
-        print(f"servobot calibrate: {exc}", file=sys.stderr)
-        return 2
+        print(f"{PROG}: physics failed: {exc}", file=sys.stderr)
+        return EXIT_FAILED
     if res.params_path is not None:
         also = f"{params_out} and " if params_out is not None else ""
         print(f"fitted gait parameters written to {also}{res.params_path}")
@@ -165,3 +166,20 @@ def main(argv: list[str] | None = None) -> int:
     if args.rrd is not None:
         print(f"recording saved to {args.rrd}")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``servobot calibrate``; returns the exit code (0 ok, 1 physics failed, 2 bad
+    input, 130 interrupted)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = _parser().parse_args(argv)
+    command = command_line(PROG, argv)
+
+    def interrupted() -> Interrupted:
+        kept = (
+            f"every earlier file in {args.out} as it was (a calibration writes its files only "
+            "when all gaits are measured)"
+        )
+        return Interrupted(kept, f"{command} (the calibration starts again)")
+
+    return run_command(PROG, lambda: _run(args, command), interrupted)

@@ -12,13 +12,17 @@ Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for
 ``GASettings()`` for coverage. ``--navigation`` defaults to ``DIR/navigation/best.txt``; a
 16-gene file (e.g. a ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the
 navigation section, are used. Bad input (missing or malformed files, a bad gait table,
-impossible sizes) prints one message and exits with code 2, without a traceback.
+impossible sizes, a run folder holding another run or in use) prints one message and exits
+with code 2, without a traceback (``servobot.cli.runner``); ``--force`` deletes the stage's
+own files in a folder holding another run and starts afresh. Ctrl-C keeps the checkpoints
+and says how to resume (exit 130).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -26,19 +30,20 @@ from typing import Any
 import numpy as np
 
 from evolve.settings import GASettings, WorldSettings, navigation_ga_settings
+from infra.bounds import check_int
+from infra.errors import InputError
 from infra.executors import Executor
+from infra.io import check_output_dir
 from servobot.cli.options import add_executor_option, executor_from_args
+from servobot.cli.runner import Interrupted, command_line, run_command
 from servobot.progress import GenerationBars
 
+PROG = "servobot evolve"
 DEFAULT_OUT = Path("runs/evolve")
 """Default run folder of ``--out``."""
-EXIT_USAGE = 2
-"""Exit code of bad input (argparse's convention)."""
-EXIT_INTERRUPTED = 130
-"""Exit code after Ctrl-C (128 + SIGINT, the shell's convention)."""
 
 
-class CliError(ValueError):
+class CliError(InputError, ValueError):
     """Bad command-line input; the message is printed as is."""
 
 
@@ -67,23 +72,29 @@ def build_parser() -> argparse.ArgumentParser:
         "--table", default="paper", help="gait table: 'paper' (Figure 4) or a calibration JSON"
     )
     p.add_argument(
-        "--power",
-        choices=("paper", "table"),
-        default="paper",
-        help="power model: 'paper' (0.0209 V per cycle, gait 7 free; default) or 'table' "
-        "(each gait costs the dV measured in --table)",
-    )
-    p.add_argument(
         "--out", type=Path, default=DEFAULT_OUT, help=f"run folder (default {DEFAULT_OUT})"
     )
     p.add_argument(
         "--resume", action="store_true", help="continue from the checkpoints in the run folder"
     )
     p.add_argument(
+        "--force",
+        action="store_true",
+        help="the stage's folder holds another run: delete that run's files (only those) and "
+        "start afresh",
+    )
+    p.add_argument(
         "--navigation",
         type=Path,
         default=None,
         help="coverage only: navigation section file (default DIR/navigation/best.txt)",
+    )
+    p.add_argument(
+        "--power",
+        choices=("paper", "table"),
+        default="paper",
+        help="power model: 'paper' (0.0209 V per cycle, gait 7 free; default) or 'table' "
+        "(each gait costs the dV measured in --table)",
     )
     add_executor_option(
         p, "serial", "serial (one population after another: the kernel uses every core)"
@@ -97,9 +108,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def executor(args: argparse.Namespace) -> Executor | None:
     """Where the populations evolve: None = here (live progress), else an executor."""
-    if args.workers is not None and args.workers < 1:
-        raise CliError(f"--workers must be ≥ 1, got {args.workers}")
-    return None if args.executor == "serial" else executor_from_args(args, "servobot evolve")
+    if args.workers is not None:
+        check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    return None if args.executor == "serial" else executor_from_args(args)
 
 
 def ga_settings(args: argparse.Namespace) -> GASettings:
@@ -131,7 +142,7 @@ def load_navigation(path: Path) -> np.ndarray:
     from evolve.codec import read_chromosome
     from evolve.stages import navigation_section
 
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         raise CliError(
             f"{path}: no navigation section file; run 'servobot evolve navigation' with the "
             "same --out first, or give --navigation FILE"
@@ -170,53 +181,41 @@ def _print_coverage(summary: dict[str, Any], out: Path) -> None:
     print(f"wrote {out / 'coverage'} and {out / 'figure8.png'} ({summary['wall_s']:.1f} s)")
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run ``servobot evolve``; returns the exit code (0 ok, 2 bad input)."""
-    args = build_parser().parse_args(argv)
+def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     from evolve import stages
-    from evolve.codec import ChromosomeError
-    from evolve.table import GaitTableError, load_table, with_power_model
+    from evolve.table import load_table, with_power_model
 
+    ga = ga_settings(args)
+    table = load_table(args.table)
+    world = with_power_model(WorldSettings(), args.power, table)
+    check_output_dir(args.out, option="--out")
+    kw = dict(table=table, ga=ga, world=world, resume=args.resume, force=args.force,
+              on_generation=bars, executor=executor(args))  # fmt: skip
+    if args.stage == "navigation":
+        if args.navigation is not None:
+            raise CliError("--navigation is an option of the coverage stage")
+        _print_navigation(stages.run_navigation(args.out, **kw), args.out)
+    else:
+        navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt")
+        _print_coverage(stages.run_coverage(args.out, navigation=navigation, **kw), args.out)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``servobot evolve``; returns the exit code (0 ok, 2 bad input, 130 interrupted)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
     bars = GenerationBars(enabled=not args.no_progress)
+
+    def interrupted() -> Interrupted:
+        ckpt = args.out / args.stage / "checkpoints"
+        kept = f"the checkpoints in {ckpt}" if ckpt.is_dir() else "nothing yet"
+        return Interrupted(kept, command_line(PROG, argv, "--resume", drop=["--force"]))
+
     try:
-        ga = ga_settings(args)
-        table = load_table(args.table)
-        world = with_power_model(WorldSettings(), args.power, table)
-        if args.stage == "navigation":
-            if args.navigation is not None:
-                raise CliError("--navigation is an option of the coverage stage")
-            summary = stages.run_navigation(
-                args.out, table=table, ga=ga, world=world, resume=args.resume,
-                on_generation=bars, executor=executor(args),
-            )  # fmt: skip
-            _print_navigation(summary, args.out)
-        else:
-            nav_path = args.navigation or args.out / "navigation" / "best.txt"
-            navigation = load_navigation(nav_path)
-            summary = stages.run_coverage(
-                args.out,
-                navigation=navigation,
-                table=table,
-                ga=ga,
-                world=world,
-                resume=args.resume,
-                on_generation=bars,
-                executor=executor(args),
-            )
-            _print_coverage(summary, args.out)
-    except (CliError, stages.StageError, GaitTableError, ChromosomeError) as exc:
-        print(f"servobot evolve: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        print(
-            f"\nservobot evolve: interrupted; the checkpoints in {args.out} are kept, "
-            "rerun the same command with --resume to continue",
-            file=sys.stderr,
-        )
-        return EXIT_INTERRUPTED
+        return run_command(PROG, lambda: _run(args, bars), interrupted)
     finally:
         bars.close()
-    return 0
 
 
 if __name__ == "__main__":

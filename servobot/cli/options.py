@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import sys
 
 from infra.executors import (
     EXECUTOR_SPECS,
     Executor,
-    ExecutorError,
     RayExecutor,
     check_spec,
     make_executor,
@@ -44,15 +42,11 @@ def add_executor_option(p: argparse.ArgumentParser, default: str | None, default
     )
 
 
-def executor_from_args(args: argparse.Namespace, prog: str) -> Executor:
+def executor_from_args(args: argparse.Namespace) -> Executor:
     """The executor of ``--executor`` and ``--workers`` (already checked); a Ray one joins
     or starts Ray now, so that a cluster that cannot be reached stops the command before any
-    work (message, exit status 2)."""
+    work (an ``ExecutorError``, an ``InputError``: message, exit status 2)."""
     ex = make_executor(args.executor, args.workers)
     if isinstance(ex, RayExecutor):
-        try:
-            ex.connect()
-        except ExecutorError as exc:
-            print(f"{prog}: {exc}", file=sys.stderr)
-            raise SystemExit(2) from exc
+        ex.connect()
     return ex

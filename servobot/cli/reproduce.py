@@ -1,22 +1,27 @@
 """``servobot reproduce``: the end-to-end reproduction into one run folder (resumable).
 
 Parses the options, shows progress and prints where the report is;
-``servobot.reproduce.reproduce`` does the work.
+``servobot.reproduce.reproduce`` does the work. Bad input exits 2 before any stage runs;
+Ctrl-C exits 130 keeping the finished stages and checkpoints (``servobot.cli.runner``).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 
 from tqdm import tqdm
 
-from evolve.population import StageError
-from evolve.table import GaitTableError
+from infra.bounds import check_int
 from servobot.cli.options import add_executor_option, executor_from_args
+from servobot.cli.runner import Interrupted, command_line, run_command
 from servobot.progress import GenerationBars
-from servobot.reproduce import ReproduceError, reproduce, resolve_settings
+from servobot.reproduce import reproduce, resolve_settings
 from servobot.reproduce_report import format_seconds
+
+PROG = "servobot reproduce"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -26,7 +31,9 @@ def build_parser() -> argparse.ArgumentParser:
         "physics, and write REPORT.md with figures and .rrd recordings. Resumable: rerun the "
         "same command after an interruption.",
     )
-    p.add_argument("--out", default="runs/reproduce", help="run folder (default runs/reproduce)")
+    p.add_argument(
+        "--out", type=Path, default=Path("runs/reproduce"), help="run folder (runs/reproduce)"
+    )
     p.add_argument(
         "--quick", action="store_true", help="small budgets for a first look (a few minutes)"
     )
@@ -34,60 +41,68 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--workers", type=int, default=None, help="processes for physics (default: all cores)"
     )
-    add_executor_option(p, None, "process, serial with --workers 1 (validation runs)")
     p.add_argument(
         "--validate-starts",
         type=int,
         default=None,
         help="validation starts per finalist (default 20; --quick 3)",
     )
+    add_executor_option(p, None, "process, serial with --workers 1 (validation runs)")
     p.add_argument(
         "--model",
         default=None,
         metavar="FILE",
         help="robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)",
     )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="--out holds a run made with other settings: delete its files (only those) and "
+        "start afresh",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    if args.workers is not None and args.workers < 1:
-        print("servobot reproduce: --workers must be ≥ 1", file=sys.stderr)
-        return 2
-    try:
-        settings = resolve_settings(
-            quick=args.quick, seed=args.seed, validate_starts=args.validate_starts,
-            model=args.model,
-        )  # fmt: skip
-    except ReproduceError as exc:
-        print(f"servobot reproduce: {exc}", file=sys.stderr)
-        return 2
+def _run(args: argparse.Namespace) -> int:
+    if args.workers is not None:
+        check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    if args.seed is not None:
+        check_int(args.seed, "--seed", lo=0)
+    settings = resolve_settings(
+        quick=args.quick, seed=args.seed, validate_starts=args.validate_starts,
+        model=args.model,
+    )  # fmt: skip
     bars = GenerationBars(enabled=not args.no_progress)
     runs = tqdm(
         total=settings.coverage_populations * settings.validate_starts,
         desc="validation runs", unit="run", disable=args.no_progress, file=sys.stderr,
+        delay=1e-3,  # drawn at its first run, not before the checks
     )  # fmt: skip
     try:
         res = reproduce(
             args.out,
             settings=settings,
-            executor=executor_from_args(args, "servobot reproduce"),
+            workers=args.workers,
+            executor=executor_from_args(args),
             on_generation=bars,
             on_run=lambda _rec: runs.update(1),
+            force=args.force,
         )
-    except (ReproduceError, StageError, GaitTableError) as exc:
-        print(f"servobot reproduce: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(
-            "\nservobot reproduce: interrupted; run the same command again to resume",
-            file=sys.stderr,
-        )
-        return 130
     finally:
         bars.close()
         runs.close()
     print(f"report: {res['report']} (this invocation {format_seconds(res['wall_s'])})")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``servobot reproduce``; returns the exit code (0 ok, 2 bad input, 130 interrupted)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
+
+    def interrupted() -> Interrupted:
+        kept = f"the finished stages and the evolution checkpoints in {args.out}"
+        return Interrupted(kept, command_line(PROG, argv, drop=["--force"]))
+
+    return run_command(PROG, lambda: _run(args), interrupted)

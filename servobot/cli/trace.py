@@ -9,6 +9,8 @@ One line per interpreter event (``evolve.trace.event_line``); text mode ends wit
 summary line. ``--json`` prints one JSON object per event and nothing else. ``--rrd FILE``
 also records the run with ``servobot.recording``; open it with ``rerun FILE``.
 ``--mode`` defaults to the chromosome's length: 16 genes → coverage, 8 genes → navigation.
+Bad input exits 2 with a message; ``--rrd`` is checked writable before the run; Ctrl-C
+exits 130 and discards the unfinished recording (``servobot.cli.runner``).
 """
 
 from __future__ import annotations
@@ -16,23 +18,27 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 from pathlib import Path
 from typing import TextIO
 
-from evolve.codec import ChromosomeError, read_chromosome
+from evolve.codec import read_chromosome
 from evolve.interpreter import MODES, StepEvent
 from evolve.settings import WorldSettings
-from evolve.table import GaitTableError, load_table
+from evolve.table import load_table
 from evolve.trace import TEXT_HEADER, event_dict, event_line, summary_line, trace
+from infra.bounds import LIMITS, Need, check_need
+from infra.errors import InputError
+from infra.io import check_output_file
+from servobot.cli.runner import Interrupted, command_line, run_command
 
-EXIT_USAGE = 2
-"""Exit code of bad input."""
+PROG = "servobot trace"
 DEFAULT_WORLD = WorldSettings()
+STEP_BYTES = 400
+"""Memory one traced step keeps (track entry, event, recording buffers), bytes [estimate]."""
 
 
-class TraceError(ValueError):
+class TraceError(InputError, ValueError):
     """Bad input to ``servobot trace``; the message is printed as is."""
 
 
@@ -72,6 +78,9 @@ def _check(args: argparse.Namespace, world: WorldSettings, genes: int) -> str:
         raise TraceError(f"--start ({x:g}, {y:g}) lies outside the arena [0, {world.arena_size:g}]")
     if args.steps is not None and args.steps < 0:
         raise TraceError(f"--steps must be ≥ 0, got {args.steps}")
+    if args.steps is not None:
+        need = Need(args.steps * STEP_BYTES, args.steps / LIMITS.interpreter_steps_per_s)
+        check_need(need, f"--steps {args.steps}")
     if args.power is not None and not math.isfinite(args.power):
         raise TraceError(f"--power must be a finite number, got {args.power}")
     mode = args.mode or ("coverage" if genes == 16 else "navigation")
@@ -83,18 +92,13 @@ def _check(args: argparse.Namespace, world: WorldSettings, genes: int) -> str:
     return mode
 
 
-def main(argv: list[str] | None = None, *, stdout: TextIO | None = None) -> int:
-    """Run ``servobot trace``; returns the exit code (0 ok, 2 bad input)."""
-    args = build_parser().parse_args(argv)
-    out = stdout or sys.stdout
+def _run(args: argparse.Namespace, out: TextIO) -> int:
     world = DEFAULT_WORLD
-    try:
-        bits = read_chromosome(args.chromosome)
-        mode = _check(args, world, bits.shape[0])
-        table = load_table(args.table)
-    except (TraceError, ChromosomeError, GaitTableError) as exc:
-        print(f"servobot trace: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
+    bits = read_chromosome(args.chromosome)
+    mode = _check(args, world, bits.shape[0])
+    table = load_table(args.table)
+    if args.rrd is not None:
+        check_output_file(args.rrd, option="--rrd")
 
     def emit(e: StepEvent) -> None:
         if args.json:
@@ -109,30 +113,38 @@ def main(argv: list[str] | None = None, *, stdout: TextIO | None = None) -> int:
             f"start ({start[0]:g}, {start[1]:g}, {start[2]:g})\n{TEXT_HEADER}\n"
         )
     kw = dict(mode=mode, table=table, world=world, power=args.power, max_steps=args.steps)
-    try:
-        if args.rrd is None:
-            res = trace(bits, start, on_event=emit, **kw)
-        else:
-            from servobot.recording import RunRecorder  # lazy: rerun only when asked for
+    if args.rrd is None:
+        res = trace(bits, start, on_event=emit, **kw)
+    else:
+        from servobot.recording import RunRecorder  # lazy: rerun only when asked for
 
-            with RunRecorder.for_trace(args.rrd, bits, start, mode=mode, table=table,
-                                       world=world, source=args.chromosome) as rec:  # fmt: skip
+        with RunRecorder.for_trace(args.rrd, bits, start, mode=mode, table=table,
+                                   world=world, source=args.chromosome) as rec:  # fmt: skip
 
-                def emit_and_record(e: StepEvent) -> None:
-                    emit(e)
-                    rec.table_event(e)
+            def emit_and_record(e: StepEvent) -> None:
+                emit(e)
+                rec.table_event(e)
 
-                res = trace(bits, start, on_event=emit_and_record, **kw)
-                rec.close({"table": res})
-        if not args.json:
-            out.write(summary_line(res) + "\n")
-            if args.rrd is not None:
-                out.write(f"# recording: {args.rrd}\n")
-        out.flush()
-    except BrokenPipeError:  # e.g. piped into `head`: stop quietly, as Unix tools do
-        if out is sys.stdout:
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            res = trace(bits, start, on_event=emit_and_record, **kw)
+            rec.close({"table": res})
+    if not args.json:
+        out.write(summary_line(res) + "\n")
+        if args.rrd is not None:
+            out.write(f"# recording: {args.rrd}\n")
+    out.flush()
     return 0
+
+
+def main(argv: list[str] | None = None, *, stdout: TextIO | None = None) -> int:
+    """Run ``servobot trace``; returns the exit code (0 ok, 2 bad input, 130 interrupted)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
+
+    def interrupted() -> Interrupted:
+        rrd = "" if args.rrd is None else "; the unfinished recording was not written"
+        return Interrupted(f"the lines printed above{rrd}", command_line(PROG, argv))
+
+    return run_command(PROG, lambda: _run(args, stdout or sys.stdout), interrupted)
 
 
 if __name__ == "__main__":

@@ -4,13 +4,16 @@ Runs the 16-gene chromosome from N start poses (SPEC §5 coverage region, seeded
 given ``--start X Y H`` poses, in both worlds, and writes ``report.json``, ``report.md``,
 ``tracks.npz`` (and ``run{k}.rrd`` with ``--rrd``) into ``--out``. Prints the per-start table
 and the summary. Exit status: 0 = all runs finished, 1 = some physics runs failed (their
-errors are in the report), 2 = bad input (message names the problem).
+errors are in the report), 2 = bad input (message names the problem; checked before any
+run), 130 = interrupted (``servobot.cli.runner``). ``--force`` replaces a validation made
+with other inputs in ``--out``.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -21,26 +24,29 @@ from tqdm import tqdm
 from evolve.codec import ChromosomeError, read_chromosome
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
+from infra.bounds import check_int, check_need, check_number
+from infra.errors import InputError
+from servo_mj.robot.gaits import MAX_TARGET_RAD
 from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings
 from servobot.cli.options import add_executor_option, executor_from_args
+from servobot.cli.runner import EXIT_FAILED, Interrupted, command_line, run_command
 from servobot.validate import (
     ValidationError,
     check_chromosome,
     check_start,
     load_checked_table,
     validate,
+    validation_need,
 )
 from servobot.validation_report import run_rows, summary_lines
+
+PROG = "servobot validate"
 
 DEFAULT_STARTS = 20
 """Start poses drawn when no ``--start`` is given."""
 DEFAULT_OUT = Path("runs/validate")
 """Default output folder."""
-
-
-class InputError(ValueError):
-    """Bad command-line input; the message names the problem (exit status 2)."""
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -117,12 +123,36 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help="height of the physics station block, m (default ArenaSettings: 0.10, below the "
         "rangefinder rays; 0.30 lets the object sensors see the block)",
     )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="--out holds a validation with other inputs: delete its files (only those) first",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p.parse_args(argv)
 
 
+def _check_options(args: argparse.Namespace, n_starts: int) -> None:
+    """Range checks of the numeric options and the run's size, before anything is built."""
+    check_int(args.seed, "--seed", lo=0)
+    if args.workers is not None:
+        check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    if args.noise is not None:
+        check_number(args.noise, "--noise", lo=0.0, hi=MAX_TARGET_RAD, unit=" rad")
+    if args.steps is not None:
+        check_int(args.steps, "--steps", lo=0)
+    if args.station_height is not None:
+        check_number(args.station_height, "--station-height", lo=0.01, hi=10.0, unit=" m")
+    steps = WorldSettings().coverage_steps if args.steps is None else args.steps
+    check_need(validation_need(n_starts, steps, args.workers, args.rrd)[0],
+               f"--starts {n_starts} × --steps {steps}")  # fmt: skip
+
+
 def prepare(args: argparse.Namespace, world: WorldSettings) -> tuple[np.ndarray, np.ndarray]:
     """Read the chromosome and build the start poses; ``InputError`` on bad input."""
+    if not args.start:
+        check_int(args.starts, "--starts", lo=1)
+    _check_options(args, len(args.start) if args.start else args.starts)
     try:
         bits = check_chromosome(read_chromosome(args.chromosome))
     except (ChromosomeError, ValidationError) as exc:
@@ -130,34 +160,16 @@ def prepare(args: argparse.Namespace, world: WorldSettings) -> tuple[np.ndarray,
     if args.start:
         starts = np.array(args.start, dtype=float)
     else:
-        if args.starts < 1:
-            raise InputError(f"--starts must be at least 1, got {args.starts}")
         starts = coverage_starts(np.random.default_rng(args.seed), args.starts, world)
     for k, s in enumerate(starts):
-        try:
-            check_start(s, world, name=f"start {k} ({s[0]:g} {s[1]:g} {s[2]:g})")
-        except ValidationError as exc:
-            raise InputError(str(exc)) from exc
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers must be at least 1, got {args.workers}")
-    if args.noise is not None and not (args.noise >= 0.0 and np.isfinite(args.noise)):
-        raise InputError(f"--noise must be a finite number >= 0, got {args.noise}")
-    if args.steps is not None and args.steps < 0:
-        raise InputError(f"--steps must be at least 0, got {args.steps}")
-    if args.station_height is not None and not (0.0 < args.station_height < np.inf):
-        raise InputError(f"--station-height must be a height > 0 m, got {args.station_height}")
+        check_start(s, world, name=f"start {k} ({s[0]:g} {s[1]:g} {s[2]:g})")
     return bits, starts
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
+def _run(args: argparse.Namespace, command: str) -> int:
     world = WorldSettings()
-    try:
-        bits, starts = prepare(args, world)
-        table, warning = load_checked_table(args.table, args.model)
-    except (InputError, ValidationError) as exc:
-        print(f"servobot validate: {exc}", file=sys.stderr)
-        return 2
+    bits, starts = prepare(args, world)
+    table, warning = load_checked_table(args.table, args.model)
     if warning:
         print(warning, file=sys.stderr)
 
@@ -182,16 +194,14 @@ def main(argv: list[str] | None = None) -> int:
             arena=arena,
             out_dir=args.out,
             rrd=args.rrd,
-            executor=executor_from_args(args, "servobot validate"),
+            workers=args.workers,
+            executor=executor_from_args(args),
+            model=args.model,
             max_steps=args.steps,
             seed=args.seed,
-            model=args.model,
             on_run=on_run,
-            meta={
-                "chromosome_file": str(args.chromosome),
-                "seed": args.seed,
-                "command": "servobot validate " + " ".join(argv or sys.argv[1:]),
-            },
+            meta={"chromosome_file": str(args.chromosome), "seed": args.seed, "command": command},
+            force=args.force,
         )
     finally:
         bar.close()
@@ -199,7 +209,27 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print("\n".join(summary_lines(report)))
     print(f"\nwrote {args.out / 'report.json'}, {args.out / 'report.md'}")
-    return 1 if report["summary"]["physics_errors"] else 0
+    return EXIT_FAILED if report["summary"]["physics_errors"] else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``servobot validate``; returns the exit code (0 ok, 1 physics errors, 2 bad input,
+    130 interrupted)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parse_args(argv)
+    command = command_line(PROG, argv)
+
+    def interrupted() -> Interrupted:
+        done = sorted(p.name for p in args.out.glob("run*.rrd")) if args.rrd else []
+        kept = (
+            f"the recordings of finished runs in {args.out} ({', '.join(done) or 'none'})"
+            if args.rrd
+            else f"every earlier file in {args.out} as it was"
+        )
+        kept += "; the report is written only when every run has finished"
+        return Interrupted(kept, f"{command} (validation starts again)")
+
+    return run_command(PROG, lambda: _run(args, command), interrupted)
 
 
 if __name__ == "__main__":

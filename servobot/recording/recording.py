@@ -20,6 +20,7 @@ import numpy as np
 import rerun as rr
 
 from evolve.settings import WorldSettings
+from infra.io import OutputError, partial_path
 from servo_mj.robot.constants import CM_PER_M
 from servobot.recording.arena import log_arena, log_calibration_floor
 from servobot.recording.blueprint import Contents, make_blueprint
@@ -78,7 +79,7 @@ class Recording:
         self._blueprint = blueprint
         self.path.parent.mkdir(parents=True, exist_ok=True)
         # A unique hidden name beside the target; rerun creates it with the usual file mode.
-        self._tmp = self.path.parent / f".{self.path.stem}.{uuid.uuid4().hex}.rrd"
+        self._tmp = partial_path(self.path)
         self.rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
         self.rec.save(str(self._tmp))
         if name:
@@ -291,9 +292,13 @@ class Recording:
             ok = save
         finally:
             self.rec.disconnect()
-            if ok:
-                os.replace(self._tmp, self.path)
-            self._tmp.unlink(missing_ok=True)
+            try:
+                if ok:
+                    os.replace(self._tmp, self.path)
+            except OSError as exc:
+                raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from exc
+            finally:
+                self._tmp.unlink(missing_ok=True)
 
 
 __all__ = ["Recording", "property_values"]

@@ -1,0 +1,113 @@
+"""How every ``servobot`` subcommand ends: ``run_command``.
+
+A subcommand's ``main`` parses its arguments (argparse exits 2 on a malformed option) and
+hands the rest to ``run_command(prog, body, on_interrupt)``, which
+
+- runs ``body()`` and returns its exit code (0 done, 1 a run failed, e.g. physics);
+- turns an ``infra.errors.InputError`` (a file, option, output place, run folder or size that
+  cannot be used) into ``prog: error: <message>`` on stderr and exit code 2;
+- turns ``MemoryError`` into a message and exit code 2 (the size checks should come first);
+- ends quietly (exit 0) when stdout is a pipe whose reader stopped (``| head``);
+- turns Ctrl-C into ``prog: interrupted; kept: ...; resume with: ...`` and exit code 130,
+  and SIGTERM into the same message and exit code 143 (SIGTERM is raised in the main thread
+  as ``Terminated``, a ``KeyboardInterrupt``, so every ``finally`` and ``with`` block runs:
+  atomic writes finish or vanish, recordings are discarded, locks are released).
+
+Any other exception is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shlex
+import signal
+import sys
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from infra.errors import InputError
+
+EXIT_FAILED = 1
+"""A run finished but failed (e.g. physics blew up in some validation runs)."""
+EXIT_USAGE = 2
+"""Bad input: the message names the file or option (argparse's convention)."""
+EXIT_INTERRUPTED = 130
+"""Ctrl-C (128 + SIGINT, the shell's convention)."""
+EXIT_TERMINATED = 143
+"""SIGTERM (128 + SIGTERM)."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread so that cleanup runs as after Ctrl-C."""
+
+
+@dataclass(frozen=True)
+class Interrupted:
+    """What an interrupted command tells the user."""
+
+    kept: str
+    """What is kept on disk (and what is not)."""
+    resume: str
+    """The command that resumes (or redoes) the run."""
+
+
+def command_line(prog: str, argv: Sequence[str], *extra: str, drop: Sequence[str] = ()) -> str:
+    """``prog`` and its arguments as one shell-quoted line, without the flags in ``drop`` and
+    with ``extra`` appended unless already there (the resume command of an interrupted run:
+    ``command_line("servobot evolve", argv, "--resume", drop=["--force"])``)."""
+    args = [a for a in argv if a not in drop]
+    args += [e for e in extra if e not in args]
+    return " ".join([prog, *(shlex.quote(a) for a in args)])
+
+
+def _terminate(_signum: int, _frame: Any) -> None:
+    raise Terminated
+
+
+def run_command(
+    prog: str, body: Callable[[], int | None], on_interrupt: Callable[[], Interrupted]
+) -> int:
+    """Run ``body`` and map how it ends to an exit code and a message (module docstring)."""
+    main = threading.current_thread() is threading.main_thread()
+    old_int = signal.getsignal(signal.SIGINT)
+    old = signal.signal(signal.SIGTERM, _terminate) if main else None
+    try:
+        return int(body() or 0)
+    except InputError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except MemoryError:
+        print(f"{prog}: error: out of memory; choose smaller sizes", file=sys.stderr)
+        return EXIT_USAGE
+    except BrokenPipeError:  # output piped into e.g. `head`: stop quietly, as Unix tools do
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except KeyboardInterrupt as exc:
+        if main:  # a second Ctrl-C must not cut the message short
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        note = on_interrupt()
+        print(
+            f"\n{prog}: interrupted; kept: {note.kept}; resume with: {note.resume}",
+            file=sys.stderr,
+        )
+        return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
+    finally:
+        if main:
+            signal.signal(signal.SIGTERM, old if old is not None else signal.SIG_DFL)
+            signal.signal(signal.SIGINT, old_int if old_int is not None else signal.SIG_DFL)
+
+
+__all__ = [
+    "EXIT_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_TERMINATED",
+    "EXIT_USAGE",
+    "Interrupted",
+    "Terminated",
+    "command_line",
+    "run_command",
+]

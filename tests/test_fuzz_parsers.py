@@ -1,0 +1,281 @@
+"""Fuzzing every parser of user files with hypothesis: chromosome text, gait-table JSON, gait
+parameters, settings files (run-folder records, stage markers) and checkpoints. Whatever the
+bytes, a parser returns a valid result or raises its named error (an ``InputError`` whose
+message names the file) — never anything else."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from evolve.codec import ChromosomeError, parse_chromosome, read_chromosome
+from evolve.population import PopulationRun, StageError
+from evolve.settings import GASettings, WorldSettings
+from evolve.stages import navigation_stage
+from evolve.table import MAX_STEP_CM, MAX_TURN_DEG, PAPER_TABLE, load_table, table_to_json
+from infra.errors import InputError
+from infra.io import read_json
+from infra.rundir import RECORD_FILE, RunDirError, run_folder
+from servo_mj.robot.gaits import MAX_TARGET_RAD, GaitLibrary
+from servobot.reproduce import DONE, read_done
+
+FUZZ = settings(
+    max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+GENE = "01 0100000 0100000 0100000 0100000"
+
+json_values = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(max_size=8),
+    lambda inner: (
+        st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=6), inner, max_size=4)
+    ),
+    max_leaves=12,
+)
+"""Any JSON value."""
+raw_numbers = st.sampled_from(
+    ["NaN", "Infinity", "-Infinity", "1e400", "-1e999", "1" + "0" * 5000, "2.7", "1.7e308",
+     "-0.0", "true", '"3"', "null", "[]", "{}"]
+)  # fmt: skip
+"""JSON number texts a hostile or broken file may hold where a number belongs."""
+
+
+@pytest.fixture(scope="module")
+def scratch(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("fuzz")
+
+
+def _paths(doc: object, prefix: tuple = ()) -> list[tuple]:
+    """Every element's path (keys and indices) in a JSON document, containers included."""
+    out = [prefix]
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            out += _paths(v, (*prefix, k))
+    elif isinstance(doc, list):
+        for i, v in enumerate(doc):
+            out += _paths(v, (*prefix, i))
+    return out
+
+
+def _replace(doc: object, path: tuple, value: object) -> object:
+    """``doc`` with the element at ``path`` replaced by ``value``."""
+    if not path:
+        return value
+    head, rest = path[0], path[1:]
+    if isinstance(doc, dict):
+        return {**doc, head: _replace(doc[head], rest, value)}
+    return doc[:head] + [_replace(doc[head], rest, value)] + doc[head + 1 :]
+
+
+def _mutated_json(doc: object) -> st.SearchStrategy[str]:
+    """Texts of ``doc`` with one element (anywhere) replaced by any JSON value, any finite
+    number, or a raw number text that JSON parsers differ on."""
+    paths = st.sampled_from(_paths(doc))
+    values = json_values | st.floats(allow_nan=False, allow_infinity=False) | st.integers()
+    marker = "__RAW__"
+    replaced = st.builds(lambda p, v: json.dumps(_replace(doc, p, v)), paths, values)
+    raw = st.builds(
+        lambda p, r: json.dumps(_replace(doc, p, marker)).replace(f'"{marker}"', r),
+        paths,
+        raw_numbers,
+    )
+    return replaced | raw
+
+
+def _named(exc: BaseException, path: Path) -> None:
+    assert isinstance(exc, InputError), repr(exc)
+    assert str(path) in str(exc), str(exc)
+
+
+# --------------------------------------------------------------------------- chromosomes
+
+
+chromosome_texts = st.one_of(
+    st.text(max_size=300),
+    st.text(alphabet="01 #\n\r\t\x0bx\u00a0", max_size=700),
+    st.lists(st.sampled_from([GENE, GENE[:-1], GENE + "0", "# note", "", GENE + " # c"]),
+             max_size=20).map("\n".join),
+)  # fmt: skip
+
+
+@FUZZ
+@given(text=chromosome_texts)
+def test_chromosome_text_parses_or_names_the_line(text):
+    try:
+        bits = parse_chromosome(text, name="fuzz.txt")
+    except ChromosomeError as exc:
+        assert str(exc).startswith("fuzz.txt")
+        assert 0 <= exc.line <= len(text.splitlines())
+        return
+    assert bits.shape in ((8, 30), (16, 30)) and bits.dtype == np.uint8
+    assert set(np.unique(bits)) <= {0, 1}
+
+
+@FUZZ
+@given(data=st.binary(max_size=600) | chromosome_texts.map(lambda t: t.encode("utf-8")),
+       bom=st.booleans())  # fmt: skip
+def test_chromosome_files_of_any_bytes(scratch, data, bom):
+    path = scratch / "chromosome.txt"
+    path.write_bytes((b"\xef\xbb\xbf" if bom else b"") + data)
+    try:
+        bits = read_chromosome(path)
+    except Exception as exc:  # noqa: BLE001 - the assertion is on its type
+        _named(exc, path)
+        return
+    assert bits.shape in ((8, 30), (16, 30))
+
+
+# --------------------------------------------------------------------------- gait tables
+
+TABLE_DOC = table_to_json(PAPER_TABLE, np.full((16, 3), 0.1), cycles=3)
+
+
+@FUZZ
+@given(text=_mutated_json(TABLE_DOC) | st.binary(max_size=200).map(lambda b: b.decode("latin-1")))
+def test_gait_table_files_load_or_name_the_file(scratch, text):
+    path = scratch / "table.json"
+    path.write_text(text, encoding="utf-8")
+    try:
+        table = load_table(path)
+    except Exception as exc:  # noqa: BLE001
+        _named(exc, path)
+        return
+    v = table.values
+    assert v.shape == (16, 3) and np.isfinite(v).all()
+    assert (np.abs(v[:, :2]) <= MAX_STEP_CM).all() and (np.abs(v[:, 2]) < MAX_TURN_DEG).all()
+
+
+# --------------------------------------------------------------------------- gait parameters
+
+PARAMS_DOC = GaitLibrary.load().to_dict()
+
+
+@FUZZ
+@given(text=_mutated_json(PARAMS_DOC))
+def test_gait_parameter_files_load_or_name_the_file(scratch, text):
+    path = scratch / "params.json"
+    path.write_text(text, encoding="utf-8")
+    try:
+        lib = GaitLibrary.load(path)
+    except Exception as exc:  # noqa: BLE001
+        _named(exc, path)
+        return
+    for g in range(16):
+        frames = lib.frames(g)
+        assert np.isfinite(frames).all() and np.abs(frames).max() <= MAX_TARGET_RAD
+
+
+# --------------------------------------------------------------------------- settings files
+
+
+@FUZZ
+@given(data=st.binary(max_size=200) | _mutated_json({"GASettings": {"seed": 0}}).map(str.encode))
+def test_run_folder_records_of_any_bytes(scratch, data):
+    folder = scratch / "run"
+    folder.mkdir(exist_ok=True)
+    (folder / "result.txt").write_text("a result of the run in this folder")
+    (folder / RECORD_FILE).write_bytes(data)
+    want = {"GASettings": {"seed": 0}}
+    try:
+        with run_folder(folder, want, owned=["result.txt"], resume=True) as claim:
+            assert claim.state == "resumed"
+    except RunDirError as exc:
+        _named(exc, folder)
+        assert (folder / RECORD_FILE).read_bytes() == data  # refused: untouched
+        return
+    assert json.loads((folder / RECORD_FILE).read_text()) == want
+
+
+KEY = {"calibration_cycles": 20, "seed": 0}
+DONE_DOC = {"settings": KEY, "wall_s": 1.5, "finished_utc": "2024-01-01T00:00:00", "info": {}}
+
+
+@FUZZ
+@given(data=st.binary(max_size=200) | _mutated_json(DONE_DOC).map(str.encode))
+def test_stage_markers_of_any_bytes(scratch, data):
+    folder = scratch / "stage"
+    folder.mkdir(exist_ok=True)
+    (folder / DONE).write_bytes(data)
+    try:
+        doc = read_done(folder, KEY)
+    except Exception as exc:  # noqa: BLE001
+        _named(exc, folder)
+        return
+    assert doc["settings"] == KEY and math.isfinite(doc["wall_s"])
+
+
+@FUZZ
+@given(data=st.binary(max_size=300))
+def test_json_reader_of_any_bytes(scratch, data):
+    path = scratch / "any.json"
+    path.write_bytes(data)
+    try:
+        read_json(path, what="settings file")
+    except Exception as exc:  # noqa: BLE001
+        _named(exc, path)
+
+
+# --------------------------------------------------------------------------- checkpoints
+
+GA = GASettings(populations=1, population_size=4, generations=3, test_starts=2)
+WORLD = WorldSettings()
+SETTINGS_TEXT = '{"fuzz": true}'
+
+
+CHECKPOINT = {
+    "population": np.zeros((GA.population_size, 8, 30), np.uint8),
+    "generation": np.int64(0),
+    "rng_state": np.str_(json.dumps(np.random.PCG64(1).state)),
+    "history": np.zeros((0, 5)),
+    "settings": np.str_(SETTINGS_TEXT),
+}
+"""A valid checkpoint of generation 0 (the fuzzed ones change one array)."""
+ODD = [
+    np.zeros((2, 8, 30), np.uint8), np.full((4, 8, 30), 2, np.uint8), np.float64(1.5),
+    np.int64(-1), np.int64(99), np.int64(2**62), np.array([np.nan, 1.0]), np.zeros((1, 5)),
+    np.str_("{not json"), np.str_("[1, 2]"), np.array(["a", "b"]), None,
+]  # fmt: skip
+"""What may stand in a checkpoint's array (None: the array is missing)."""
+
+
+def _resume(folder: Path) -> PopulationRun:
+    return PopulationRun(0, navigation_stage(WORLD), folder, seed_seq=np.random.SeedSequence(1),
+                         table=PAPER_TABLE, ga=GA, world=WORLD, settings_text=SETTINGS_TEXT,
+                         resume=True)  # fmt: skip
+
+
+@FUZZ
+@given(key=st.sampled_from(sorted(CHECKPOINT)), odd=st.sampled_from(ODD))
+def test_checkpoint_arrays_resume_or_name_the_file(scratch, key, odd):
+    folder = scratch / "population"
+    ckpt = folder / "checkpoints" / "pop0.npz"
+    ckpt.parent.mkdir(parents=True, exist_ok=True)
+    arrays = {k: v for k, v in (CHECKPOINT | {key: odd}).items() if v is not None}
+    np.savez_compressed(ckpt, **arrays)
+    try:
+        run = _resume(folder)
+    except StageError as exc:
+        _named(exc, ckpt)
+        return
+    assert run.generation == 0 and run.pop.shape == (GA.population_size, 8, 30)
+
+
+@FUZZ
+@given(data=st.binary(max_size=400), cut=st.floats(0.0, 1.0))
+def test_checkpoint_files_of_any_bytes_or_truncated(scratch, data, cut):
+    folder = scratch / "population"
+    ckpt = folder / "checkpoints" / "pop0.npz"
+    ckpt.parent.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **CHECKPOINT)
+    raw = buf.getvalue()
+    ckpt.write_bytes(data if data else raw[: int(cut * (len(raw) - 1))])
+    with pytest.raises(StageError) as info:
+        _resume(folder)
+    _named(info.value, ckpt)
