@@ -24,10 +24,20 @@ import numpy as np
 
 from calibration.report import TOLERANCE, draw_dv, save_png, within_tolerance
 from evolve.table import DV, DV_STD, N_GAITS, PAPER_TABLE, GaitTable, load_table
+from infra.errors import InputError
 from infra.io import atomic_write_text
+from infra.rundir import run_folder
 
 FIGURE_FILE = "compare.png"
 CSV_FILE = "compare.csv"
+COMPARE_FILES = (FIGURE_FILE, CSV_FILE)
+"""What a comparison writes into its folder besides ``settings.json``."""
+
+
+class CompareError(InputError, ValueError):
+    """Tables that cannot be compared (fewer than two, labels that do not match)."""
+
+
 QUANTITIES = (("F", "cm"), ("T", "cm"), ("dH", "deg"), ("dV", "V"))
 """Compared quantities and their units: the gait table's three columns and the voltage drop."""
 
@@ -97,10 +107,10 @@ def _columns(table: GaitTable) -> tuple[np.ndarray, np.ndarray]:
 def compare(specs: list[str], labels: list[str] | None = None) -> Comparison:
     """Load the tables (``evolve.table.load_table`` specs) and line them up."""
     if len(specs) < 2:
-        raise ValueError(f"compare needs two or more gait tables, got {len(specs)}")
+        raise CompareError(f"compare needs two or more gait tables, got {len(specs)}")
     labels = labels or default_labels(specs)
     if len(labels) != len(specs):
-        raise ValueError(f"{len(labels)} labels for {len(specs)} tables")
+        raise CompareError(f"{len(labels)} labels for {len(specs)} tables")
     cols = [_columns(load_table(s)) for s in specs]
     return Comparison(labels, np.stack([c[0] for c in cols]), np.stack([c[1] for c in cols]))
 
@@ -163,14 +173,25 @@ def save_comparison_figure(path: str | Path, cmp: Comparison) -> Path:
 
 
 def compare_tables(
-    specs: list[str], out: str | Path, labels: list[str] | None = None
+    specs: list[str], out: str | Path, labels: list[str] | None = None, *, force: bool = False
 ) -> Comparison:
-    """Compare the tables and write ``compare.png`` and ``compare.csv`` into ``out``."""
+    """Compare the tables and write ``compare.png`` and ``compare.csv`` into ``out`` (a run
+    folder of its own: ``infra.rundir.run_folder``; ``force`` replaces another comparison)."""
     cmp = compare(specs, labels)
     out = Path(out)
-    csv_path = write_csv(out / CSV_FILE, cmp)
-    fig_path = save_comparison_figure(out / FIGURE_FILE, cmp)
+    record = {"tables": [str(s) for s in specs], "labels": list(cmp.labels)}
+    with run_folder(out, record, owned=COMPARE_FILES, resumable=False, force=force):
+        csv_path = write_csv(out / CSV_FILE, cmp)
+        fig_path = save_comparison_figure(out / FIGURE_FILE, cmp)
     return Comparison(cmp.labels, cmp.values, cmp.std, fig_path, csv_path)
 
 
-__all__ = ["Comparison", "compare", "compare_tables", "default_labels", "write_csv"]
+__all__ = [
+    "COMPARE_FILES",
+    "CompareError",
+    "Comparison",
+    "compare",
+    "compare_tables",
+    "default_labels",
+    "write_csv",
+]

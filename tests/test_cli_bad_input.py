@@ -164,6 +164,22 @@ CASES = {
         (["--validate-starts", "1000000000"], "the reproduction's budgets need"),
         (["--out", "{chrom16}"], "is a file, not a folder"),
         (["--out", "/proc/servobot-x"], "cannot write there"),
+        (["--model", "{dir}"], "a_folder: no such file"),
+    ],
+    "variant": [
+        (["--torso-mass", "-1", "--out", "{dir}/v.xml"], "torso_mass_kg must be > 0"),
+        (["--leg-length", "nan", "--out", "{dir}/v.xml"], "leg_length_m must be a finite"),
+        (["--out", "{dir}"], "--out"),
+        (["--show", "{dir}"], "a_folder: is a folder, not a model file"),
+        (["--show", "{binary}"], "binary.bin: holds binary data"),
+        (["--show", "{chrom16}"], "c16.txt: MuJoCo cannot compile it"),
+    ],
+    "compare": [
+        (["paper"], "compare needs two or more gait tables, got 1"),
+        (["paper", "{inf_table}"], "non-finite number Infinity"),
+        (["paper", "{dir}"], "is a folder, not a gait-table file"),
+        (["paper", "paper", "--labels", "a"], "1 labels for 2 tables"),
+        (["paper", "paper", "--out", "{chrom16}"], "is a file, not a folder"),
     ],
 }
 PARAMS = [(cmd, argv, msg) for cmd, cases in CASES.items() for argv, msg in cases]
@@ -180,7 +196,7 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str]:
 def _fill(command: str, argv: list[str], files: dict[str, Path], tmp: Path) -> list[str]:
     """``argv`` with the files filled in and, for a command with one, an ``--out`` in ``tmp``."""
     args = [a.format(**{k: str(v) for k, v in files.items()}) for a in argv]
-    if command != "trace" and "--out" not in args:
+    if command not in ("trace", "variant") and "--out" not in args:
         args += ["--out", str(tmp / "out")]
     return [command, *args]
 

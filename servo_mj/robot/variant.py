@@ -42,7 +42,8 @@ import numpy as np
 from dm_control import mjcf
 from lxml import etree
 
-from infra.io import atomic_write_text
+from infra.errors import InputError
+from infra.io import atomic_write_text, read_text
 from servo_mj.robot import constants as C
 from servo_mj.robot.bot import ServoBot
 from servo_mj.robot.gaits import N_GAITS
@@ -64,7 +65,7 @@ HEADER = (
 )
 
 
-class VariantError(ValueError):
+class VariantError(InputError, ValueError):
     """An impossible variant (bad value, a robot that cannot stand or walk); names the problem."""
 
 
@@ -203,6 +204,7 @@ def variant_params(model: mujoco.MjModel, prefix: str = "") -> VariantParams | N
 
 def read_variant(path: str | Path) -> VariantParams | None:
     """The parameters a model file records (None: not a variant file)."""
+    read_text(path, what="model file")  # a named error (ReadError) for any unusable file
     try:
         model = mujoco.MjModel.from_xml_path(str(path))
     except ValueError as exc:

@@ -13,7 +13,10 @@ import sys
 from pathlib import Path
 
 from calibration.compare import compare_tables
-from evolve.table import GaitTableError
+from infra.io import check_output_dir
+from servobot.cli.runner import Interrupted, command_line, run_command
+
+PROG = "servobot compare"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -25,19 +28,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("tables", nargs="+", metavar="TABLE", help="gait_table.json files or 'paper'")
     p.add_argument("--out", type=Path, default=Path("runs/compare"), help="output folder")
     p.add_argument("--labels", nargs="+", default=None, help="a name per table (default: folder)")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="--out holds another comparison: delete its files (only those) first",
+    )
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        cmp = compare_tables(args.tables, args.out, args.labels)
-    except (GaitTableError, ValueError) as exc:
-        print(f"servobot compare: {exc}", file=sys.stderr)
-        return 2
+def _run(args: argparse.Namespace) -> int:
+    check_output_dir(args.out, option="--out")
+    cmp = compare_tables(args.tables, args.out, args.labels, force=args.force)
     print(cmp.summary())
     print(f"wrote {cmp.figure_path} and {cmp.csv_path}")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``servobot compare``; 0 ok, 2 bad input, 130 interrupted."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
+
+    def interrupted() -> Interrupted:
+        return Interrupted(f"every earlier file in {args.out} as it was", command_line(PROG, argv))
+
+    return run_command(PROG, lambda: _run(args), interrupted)
 
 
 if __name__ == "__main__":

@@ -17,7 +17,11 @@ import argparse
 import sys
 from pathlib import Path
 
-from servo_mj.robot.variant import VariantError, VariantParams, read_variant, write_variant
+from infra.io import check_output_file
+from servo_mj.robot.variant import VariantParams, read_variant, write_variant
+from servobot.cli.runner import Interrupted, command_line, run_command
+
+PROG = "servobot variant"
 
 DEFAULTS = VariantParams()
 OPTIONS = (
@@ -55,26 +59,34 @@ def _print_params(params: VariantParams) -> None:
         print(f"  foot-floor friction used by MuJoCo: {params.effective_friction:g} (the larger)")
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        if args.show is not None:
-            params = read_variant(args.show)
-            if params is None:
-                print(f"{args.show}: records no variant parameters (not a servobot variant file)")
-                return 0
-            print(f"{args.show}: ServoBot variant")
-            _print_params(params)
+def _run(args: argparse.Namespace) -> int:
+    if args.show is not None:
+        params = read_variant(args.show)
+        if params is None:
+            print(f"{args.show}: records no variant parameters (not a servobot variant file)")
             return 0
-        params = VariantParams(**{field: getattr(args, field) for _, field, _, _ in OPTIONS})
-        path = write_variant(params, args.out)
-    except (VariantError, OSError) as exc:
-        print(f"servobot variant: {exc}", file=sys.stderr)
-        return 2
+        print(f"{args.show}: ServoBot variant")
+        _print_params(params)
+        return 0
+    params = VariantParams(**{field: getattr(args, field) for _, field, _, _ in OPTIONS})
+    check_output_file(args.out, option="--out")
+    path = write_variant(params, args.out)
     print(f"wrote {path}: it stands and walks every gait")
     _print_params(params)
     print(f"next: servobot calibrate --model {path} --out runs/calibration_{path.stem}")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``servobot variant``; 0 ok, 2 bad input or an impossible robot, 130 interrupted."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
+
+    def interrupted() -> Interrupted:
+        return Interrupted("nothing (the file is written only once checked)",
+                           command_line(PROG, argv))  # fmt: skip
+
+    return run_command(PROG, lambda: _run(args), interrupted)
 
 
 if __name__ == "__main__":
