@@ -1,4 +1,4 @@
-"""Settings of the table world and the GA (SPEC §3, §5, §6) as frozen dataclasses.
+"""Settings of the table world, the colony and the GA (SPEC §3, §5–7) as frozen dataclasses.
 
 Every value the SPEC marks [chosen] is a named field here; [paper] values are fields too so
 that a run folder's saved settings say exactly how it was made. Units: lengths in arena units
@@ -106,6 +106,63 @@ class WorldSettings:
 
 
 @dataclass(frozen=True)
+class ColonySettings:
+    """A colony of robots sharing the arena and its one station (SPEC §7).
+
+    Every robot runs the same chromosome under ``WorldSettings``; these fields add what the
+    colony needs. Lengths in arena units (cm); times in colony steps (one step of every live
+    robot, in index order).
+    """
+
+    robots: int = 3
+    """Robots in the colony, R [chosen]."""
+    disc_radius: float = 15.0
+    """Table-world footprint: a disc of this radius around each robot's centre, units [chosen].
+    A move that would bring two centres closer than two radii is cancelled; object sensors
+    see every point of another robot's disc within ``WorldSettings.object_range``."""
+    charge_steps: int = 10
+    """Colony steps a docked robot occupies the station while charging (power rising linearly
+    to ``charged_power_v``, the robot standing still) before its backup cycles [chosen].
+    0 charges at once, as one robot does in SPEC §3."""
+    start_separation: float = 40.0
+    """Colony start poses: every centre at least this far from every other, units [chosen]."""
+    colony_step_limit: int | None = None
+    """If set, the run also ends after this many colony steps (SPEC §7 read literally: a
+    robot's charging steps then come out of its 600). None (default): each robot takes up
+    to ``coverage_steps`` (``navigation_steps``) gait steps of its own, charging steps not
+    counted, and the run ends when no robot is live — so R = 1 is exactly one robot [chosen;
+    see docs/colony.md]."""
+    start_attempts: int = 10_000
+    """Rejection draws allowed per robot's start pose before the sampler gives up (a bound,
+    not a SPEC value)."""
+
+    def __post_init__(self) -> None:
+        if self.robots < 1:
+            raise ValueError(f"robots must be ≥ 1, got {self.robots}")
+        if not self.disc_radius >= 0.0:
+            raise ValueError(f"disc_radius must be ≥ 0, got {self.disc_radius}")
+        if self.charge_steps < 0:
+            raise ValueError(f"charge_steps must be ≥ 0, got {self.charge_steps}")
+        if not self.start_separation >= 2.0 * self.disc_radius:
+            raise ValueError(
+                f"start_separation {self.start_separation} must be at least two disc radii "
+                f"({2.0 * self.disc_radius}): robots would start overlapping"
+            )
+        if self.colony_step_limit is not None and self.colony_step_limit < 0:
+            raise ValueError(f"colony_step_limit must be ≥ 0 or None, got {self.colony_step_limit}")
+        if self.start_attempts < 1:
+            raise ValueError(f"start_attempts must be ≥ 1, got {self.start_attempts}")
+
+    @property
+    def min_distance(self) -> float:
+        """Closest allowed distance between two robots' centres: two disc radii, units."""
+        return 2.0 * self.disc_radius
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
 class GASettings:
     """The multi-loop CGA with conditional branching (SPEC §5, §6)."""
 
@@ -149,4 +206,10 @@ def settings_json(*objs: Any) -> str:
     return json.dumps({type(o).__name__: dataclasses.asdict(o) for o in objs}, indent=2)
 
 
-__all__ = ["WorldSettings", "GASettings", "navigation_ga_settings", "settings_json"]
+__all__ = [
+    "WorldSettings",
+    "ColonySettings",
+    "GASettings",
+    "navigation_ga_settings",
+    "settings_json",
+]
