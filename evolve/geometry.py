@@ -191,6 +191,8 @@ def _disc_reaches(rel, a, b, dist, radius, reach):
     The closest such point lies on the span direction closest to the centre, δ off it: that
     ray enters the disc at d·cos δ − √(r² − d²·sin² δ), and misses it if d·sin δ > r."""
     delta = _span_offset(rel, a, b)
+    if delta == 0.0:
+        return dist - radius <= reach
     if delta >= 90.0:
         return False
     r = delta * DEG2RAD
