@@ -1,20 +1,24 @@
-"""Speed of the ServoBot physics: steps per second, real-time factor, calibration wall time.
+"""Speed of the ServoBot physics: steps per second, real-time factor, calibration wall time
+on each executor.
 
-Prints rates, asserts nothing. Run: ``python -m calibration.bench [--cycles N]``.
+Prints rates, asserts nothing. Run: ``python -m calibration.bench [--cycles N]
+[--executors serial process ray] [--workers 2]``. The cost of a validation run against this
+bare cycle is ``python -m servobot.validation_bench``.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
-import subprocess
 import sys
-import tempfile
 import time
 
 import mujoco
 import numpy as np
 
+from calibration.measure import DEFAULTS, measure_all
+from infra.executors import RayExecutor, make_executor
 from servo_mj.robot.bot import ServoBot
 from servo_mj.robot.model import load_robot
 from servo_mj.robot.settings import PhysicsSettings
@@ -48,21 +52,26 @@ def bench_raw_steps(steps: int) -> float:
     return steps / (time.perf_counter() - t0)
 
 
-def bench_cli(workers: int) -> float:
-    """Wall time of a full default ``python -m calibration`` (process start included), s."""
-    with tempfile.TemporaryDirectory() as out:
-        t0 = time.perf_counter()
-        subprocess.run(
-            [sys.executable, "-m", "calibration", "--out", out, "--workers", str(workers)],
-            check=True,
-            stdout=subprocess.DEVNULL,
-        )
-        return time.perf_counter() - t0
+def bench_calibration(spec: str, workers: int) -> tuple[float, float]:
+    """(start-up s, wall s) of the 16 default calibration walks on executor ``spec``; the
+    start-up is Ray's (started once per process, apart), a pool's spawn is in the wall."""
+    ex = make_executor(spec, workers)
+    t0 = time.perf_counter()
+    if isinstance(ex, RayExecutor):
+        ex.connect()
+    t1 = time.perf_counter()
+    measure_all(executor=ex, **DEFAULTS.measure_kwargs())
+    return t1 - t0, time.perf_counter() - t1
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m calibration.bench")
     p.add_argument("--cycles", type=int, default=200, help="gait cycles to time (200)")
+    p.add_argument(
+        "--executors", nargs="+", default=["serial", "process", "ray"],
+        help="executors of the full-calibration timing (serial process ray)",
+    )  # fmt: skip
+    p.add_argument("--workers", type=int, default=2, help="processes / Ray CPUs (2)")
     args = p.parse_args(argv)
     ps = PhysicsSettings()
     print(f"mujoco {mujoco.__version__}, {os.cpu_count()} cpus, load {os.getloadavg()[0]:.2f}")
@@ -77,11 +86,18 @@ def main(argv: list[str] | None = None) -> int:
         ms_c = bench_gait(args.cycles, cone=int(cone))[2]
         print(f"gait 0, friction cone {name}: {ms_c:.2f} ms wall per cycle")
     print(f"bare mj_step while standing: {bench_raw_steps(50_000):,.0f} steps/s")
-    for w in (1, 2):
+    for spec in args.executors:
+        if spec.startswith("ray") and importlib.util.find_spec("ray") is None:
+            print(f"full calibration, executor {spec}: skipped (Ray is not installed)")
+            continue
+        start, wall = bench_calibration(spec, args.workers)
+        workers = "" if spec == "serial" else f", {args.workers} workers"
+        extra = f" (+ {start:.1f} s to start Ray)" if spec.startswith("ray") else ""
         print(
-            f"full calibration (16 gaits x (1 + 20) cycles), --workers {w}: "
-            f"{bench_cli(w):.1f} s wall"
+            f"full calibration (16 gaits x (1 + 20) cycles), executor {spec}{workers}: "
+            f"{wall:.1f} s wall{extra}"
         )
+    print(f"load {os.getloadavg()[0]:.2f}")
     return 0
 
 

@@ -1,8 +1,9 @@
 """``calibrate(out, settings)``: re-measure Figure 4 in MuJoCo, optionally fitting the gaits first.
 
 The library function under ``servobot calibrate`` and the pipeline's first stage. It writes
-``out/gait_table.json`` (``evolve.table.table_to_json`` plus provenance: model hash, MuJoCo
-version, settings, gait parameters), ``out/figure4.png`` and, with a fit,
+``out/gait_table.json`` (``evolve.table.table_to_json`` with each gait's energy and voltage drop
+per cycle, plus provenance: the model's label, hash and variant parameters, MuJoCo version,
+settings, servo model, gait parameters), ``out/figure4.png`` and, with a fit,
 ``out/gait_params.json`` (and ``params_out``, e.g. the shipped file). Every file is written
 atomically once all physics has finished, so a failed run loses nothing already written.
 
@@ -12,6 +13,7 @@ Recording is a consumer of the callbacks ``on_frame(gait, data)`` and
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,6 +23,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from calibration.energy import HS311, energy_columns, power_model_doc
 from calibration.fit import FitSettings, fit_library
 from calibration.measure import (
     DEFAULTS,
@@ -31,11 +34,14 @@ from calibration.measure import (
     summarise,
 )
 from calibration.report import save_figure, within_tolerance
+from evolve.settings import WorldSettings
 from evolve.table import table_to_json
+from infra.executors import Executor
 from infra.io import atomic_write_json
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary
-from servo_mj.robot.model import model_sha256
+from servo_mj.robot.model import ModelFile, model_label, model_sha256, scene_path
 from servo_mj.robot.settings import PhysicsSettings
+from servo_mj.robot.variant import describe, read_variant
 
 TABLE_FILE = "gait_table.json"
 FIGURE_FILE = "figure4.png"
@@ -50,6 +56,9 @@ class CalibrationResult:
     """(16, 3) mean (F cm, T cm, dH deg) per gait."""
     std: np.ndarray
     """(16, 3) per-cycle standard deviation."""
+    energy: np.ndarray
+    """(16, 4) energy per cycle J and voltage drop per cycle V, mean and per-cycle std
+    (``evolve.table.ENERGY_COLUMNS``)."""
     table_path: Path
     figure_path: Path
     params_path: Path | None
@@ -64,10 +73,11 @@ def fitted_library(
     fit: FitSettings,
     *,
     workers: int = 1,
+    executor: Executor | None = None,
     log: Callable[[str], None] | None = None,
 ) -> GaitLibrary:
     """Fit the 15 walking gaits to Figure 4 and record the fit's provenance in ``meta``."""
-    fitted, report = fit_library(library, fit, workers=workers, log=log)
+    fitted, report = fit_library(library, fit, workers=workers, executor=executor, log=log)
     return GaitLibrary(
         fitted.rows,
         fitted.stride_rad,
@@ -76,7 +86,8 @@ def fitted_library(
             "fitted": True,
             "fit_settings": fit.__dict__ | {"step": list(fit.step)},
             "fit_report": {str(g): r for g, r in report.items()},
-            "model_sha256": model_sha256(),
+            "model": model_label(fit.model),
+            "model_sha256": model_sha256(fit.model),
             "mujoco_version": mujoco.__version__,
         },
     )
@@ -90,7 +101,9 @@ def calibrate(
     fit: FitSettings | None = None,
     params_out: str | Path | None = None,
     workers: int = 1,
+    executor: Executor | None = None,
     model: mujoco.MjModel | None = None,
+    world: WorldSettings | None = None,
     on_frame: FrameCallback | None = None,
     on_cycle: CycleCallback | None = None,
     log: Callable[[str], None] | None = None,
@@ -98,35 +111,54 @@ def calibrate(
 ) -> CalibrationResult:
     """Measure the 16 gaits (after fitting them when ``fit`` is given) and write the table.
 
-    ``library`` defaults to the shipped gait parameters; ``model`` to the calibration scene.
-    ``params_out``: a second place for the fitted parameters (with ``fit`` only). Raises
-    ``servo_mj.robot.bot.PhysicsError`` if the simulation blows up (nothing is written then).
+    The robot is ``settings.model`` (None = the shipped ServoBot; a fit is made on it too);
+    ``model``, an already compiled copy of it, saves compiling it again. ``library`` defaults to
+    the shipped gait parameters. ``params_out``: a second place for the fitted parameters (with
+    ``fit`` only). ``world`` gives the capacitor bank that converts energy to voltage drop. The
+    gaits (and fits) are runs of ``executor`` (default ``make_executor(None, workers)``; with
+    callbacks, here). Raises ``infra.executors.BatchError`` naming the gaits whose simulation
+    blew up, ``FileNotFoundError`` for a missing model file (nothing is written then).
     """
     out = Path(out)
     t0 = time.perf_counter()
+    scene_path(settings.model)  # a missing model file fails before any physics
     library = library if library is not None else GaitLibrary.load()
     if fit is not None:
-        library = fitted_library(library, fit, workers=workers, log=log)
+        fit = dataclasses.replace(fit, model=settings.model)
+        library = fitted_library(library, fit, workers=workers, executor=executor, log=log)
     per_cycle = measure_all(
         range(N_GAITS),
         workers=workers,
+        executor=executor,
         model=model,
         on_frame=on_frame,
         on_cycle=on_cycle,
         library=library,
         **settings.measure_kwargs(),
     )
-    values, std = summarise(per_cycle)
+    mean, spread = summarise(per_cycle)
+    values, std = mean[:, :3], spread[:, :3]
+    energy = energy_columns(mean[:, 3], spread[:, 3], world or WorldSettings())
     wall_s = time.perf_counter() - t0
-    doc = table_document(values, std, settings, library, wall_s=wall_s, command=command)
+    doc = table_document(
+        values, std, settings, library, energy=energy, world=world, wall_s=wall_s, command=command
+    )
     params_path = None
     if fit is not None:
         params_path = atomic_write_json(out / PARAMS_FILE, library.to_dict())
         if params_out is not None:
             atomic_write_json(params_out, library.to_dict())
     table_path = atomic_write_json(out / TABLE_FILE, doc)
-    figure_path = save_figure(out / FIGURE_FILE, values, std)
-    return CalibrationResult(values, std, table_path, figure_path, params_path, library, wall_s)
+    figure_path = save_figure(out / FIGURE_FILE, values, std, energy=energy)
+    return CalibrationResult(
+        values, std, energy, table_path, figure_path, params_path, library, wall_s
+    )
+
+
+def model_document(model: ModelFile) -> dict[str, Any]:
+    """Which robot a table was measured on: label, hash and variant parameters."""
+    variant = None if model is None else read_variant(model)
+    return {"model": model_label(model), "model_sha256": model_sha256(model), **describe(variant)}
 
 
 def table_document(
@@ -135,16 +167,21 @@ def table_document(
     settings: CalibrationSettings,
     library: GaitLibrary,
     *,
+    energy: np.ndarray | None = None,
+    world: WorldSettings | None = None,
     wall_s: float,
     command: str = "",
 ) -> dict[str, Any]:
-    """The ``gait_table.json`` document: the table and how it was measured."""
+    """The ``gait_table.json`` document: the table, its energy columns and how it was
+    measured."""
     return table_to_json(
         values,
         std,
         cycles=settings.cycles,
+        energy=energy,
         source="MuJoCo calibration (servobot calibrate)",
-        model_sha256=model_sha256(),
+        **model_document(settings.model),
+        power=power_model_doc(HS311, world or WorldSettings()),
         mujoco_version=mujoco.__version__,
         calibration=settings.to_dict(),
         seed=settings.seed,
@@ -158,4 +195,10 @@ def table_document(
     )
 
 
-__all__ = ["CalibrationResult", "calibrate", "fitted_library", "table_document"]
+__all__ = [
+    "CalibrationResult",
+    "calibrate",
+    "fitted_library",
+    "model_document",
+    "table_document",
+]

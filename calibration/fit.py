@@ -13,7 +13,6 @@ ctrlrange.
 from __future__ import annotations
 
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +21,7 @@ from scipy.optimize import minimize
 from calibration.measure import measure_gait
 from calibration.report import TOLERANCE
 from evolve.table import PAPER_TABLE
+from infra.executors import Executor, Failed, make_executor, values_or_raise
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
 from servo_mj.robot.model import load_robot, thrust_limit_rad
 from servo_mj.robot.settings import CALIBRATION_NOISE_RAD
@@ -48,6 +48,8 @@ class FitSettings:
     """Stop once every |error| / tolerance is below this."""
     step: tuple[float, float, float, float] = (0.12, 0.12, 0.06, 0.06)
     """Initial simplex steps of (left, right, left_offset, right_offset)."""
+    model: str | None = None
+    """The robot the gaits are fitted on: None = the shipped ServoBot, else a model file."""
 
 
 class _Done(Exception):
@@ -72,7 +74,7 @@ def fit_gait(
     g = check_gait(gait)
     target = PAPER_TABLE[g] if target is None else np.asarray(target, dtype=float)
     lift = library.rows[g][4]
-    model, _ = load_robot(scene=True)
+    model, _ = load_robot(scene=True, model=settings.model)
     limit = thrust_limit_rad(model)
     best: dict = {"cost": np.inf, "x": None, "mean": None, "n": 0}
 
@@ -94,7 +96,7 @@ def fit_gait(
             library=lib,
             model=model,
         )
-        mean = per_cycle.mean(axis=0)
+        mean = per_cycle[:, :3].mean(axis=0)
         r = scaled_residual(mean, target)
         c = float(r @ r) + penalty
         best["n"] += 1
@@ -129,24 +131,24 @@ def fit_library(
     *,
     gaits: list[int] | None = None,
     workers: int = 1,
+    executor: Executor | None = None,
     log: Callable[[str], None] | None = None,
 ) -> tuple[GaitLibrary, dict]:
-    """Fit every gait (or ``gaits``) independently; returns the fitted library and a report
-    ``{gait: {"row", "measured", "evaluations"}}``."""
+    """Fit every gait (or ``gaits``) independently, each one run of ``executor`` (default
+    ``make_executor(None, workers)``); ``log`` gets a line as each gait finishes. Returns the
+    fitted library and a report ``{gait: {"row", "measured", "evaluations"}}``; raises
+    ``infra.executors.BatchError`` naming each gait whose fit failed."""
     library = library or GaitLibrary.load()
     todo = [g for g in (gaits if gaits is not None else range(N_GAITS)) if g not in FIXED_GAITS]
-    jobs = [(g, library, settings) for g in todo]
-    if workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            results = []
-            for res in pool.map(_fit_one, jobs):
-                results.append(res)
-                if log:
-                    log(f"gait {res[0]}: {res[3]} evaluations, measured {np.round(res[2], 2)}")
-    else:
-        results = [(g, *fit_gait(g, library, settings, log=log)) for g in todo]
+    outcomes: list = [None] * len(todo)
+    ex = executor or make_executor(None, workers)
+    for i, outcome in ex.imap(_fit_one, [(g, library, settings) for g in todo]):
+        outcomes[i] = outcome
+        if log is not None and not isinstance(outcome, Failed):
+            g, _, mean, n = outcome.value
+            log(f"gait {g}: {n} evaluations, measured {np.round(mean, 2)}")
     report = {}
-    for g, row, mean, n in results:
+    for g, row, mean, n in values_or_raise(outcomes, [f"gait {g}" for g in todo]):
         library = library.with_row(g, row)
         report[g] = {"row": list(row), "measured": [float(v) for v in mean], "evaluations": n}
     return library, report

@@ -1,27 +1,33 @@
-"""Measure the gait table (F, T, dH per gait, Figure 4 layout) from MuJoCo physics.
+"""Measure the gait table (F, T, dH per gait, Figure 4 layout) and each gait's energy per
+cycle from MuJoCo physics.
 
 Pure measurement, no file output. Each gait runs on its own fresh ``MjData``: the robot is
 placed at the gait's start pose (``start_pose``), walks ``settle_cycles`` cycles that are not
 measured, then ``cycles`` measured cycles; each cycle's (F, T, dH) is taken in the frame the
-robot had when that cycle began (SPEC §1). Servo-target noise (``noise_rad``) is drawn from
-``np.random.default_rng([seed, gait])``, so a gait's numbers do not depend on which other gaits
-run or on the number of worker processes: same seed → same numbers, bit for bit.
+robot had when that cycle began (SPEC §1), and its electrical energy is integrated from the
+servos' torques and speeds step by step (``calibration.energy``). The robot is the shipped
+ServoBot or a model file (``CalibrationSettings.model``, e.g. a ``servobot variant``).
+Servo-target noise (``noise_rad``) is drawn from ``np.random.default_rng([seed, gait])``, so a
+gait's numbers do not depend on which other gaits run or on the number of worker processes:
+same seed → same numbers, bit for bit.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import mujoco
 import numpy as np
 
+from calibration.energy import HS311, EnergyMeter, ServoDatasheet
+from infra.executors import Executor, SerialExecutor, make_executor, run_in_order, values_or_raise
 from servo_mj.robot.bot import CycleResult, ServoBot
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
-from servo_mj.robot.model import load_robot
+from servo_mj.robot.model import ModelFile, load_robot, model_sha256, scene_path
 from servo_mj.robot.settings import CALIBRATION_NOISE_RAD, PhysicsSettings
 
 
@@ -40,6 +46,9 @@ class CalibrationSettings:
     start_spacing_cm: float = 400.0
     """Start poses of the 16 gaits lie on a 4 × 4 grid this far apart, heading north (so
     recordings do not overlap)."""
+    model: str | None = None
+    """The robot: None = the shipped ServoBot (``models/servobot/scene.xml``), else the path
+    of a complete MJCF scene, e.g. a ``servobot variant`` file."""
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -51,10 +60,13 @@ class CalibrationSettings:
             "settle_cycles": self.settle_cycles,
             "seed": self.seed,
             "noise_rad": self.noise_rad,
+            "model_file": self.model,
         }
 
 
 DEFAULTS = CalibrationSettings()
+COLUMNS = ("F", "T", "dH", "energy_J")
+"""Columns of a measured cycle: F, T cm, dH deg, electrical energy J."""
 
 CycleCallback = Callable[[int, CycleResult, ServoBot], None]
 """``on_cycle(gait, result, bot)``, called after every measured cycle."""
@@ -79,18 +91,21 @@ def measure_gait(
     library: GaitLibrary | None = None,
     physics: PhysicsSettings | None = None,
     model: mujoco.MjModel | None = None,
+    model_file: ModelFile = None,
+    servo: ServoDatasheet = HS311,
     on_cycle: CycleCallback | None = None,
     on_frame: FrameCallback | None = None,
 ) -> np.ndarray:
-    """Per-cycle (F cm, T cm, dH deg) of ``cycles`` measured cycles of one gait, (cycles, 3)."""
+    """Per-cycle (F cm, T cm, dH deg, energy J) of ``cycles`` measured cycles of one gait,
+    (cycles, 4) (``COLUMNS``). ``model`` (compiled) wins over ``model_file`` (a path; None =
+    the shipped robot)."""
     g = check_gait(gait)
     if cycles < 1 or settle_cycles < 0:
         raise ValueError(f"need cycles >= 1 and settle_cycles >= 0, got {cycles}, {settle_cycles}")
     if not np.isfinite(noise_rad) or noise_rad < 0:
         raise ValueError(f"noise must be a finite angle >= 0 rad, got {noise_rad}")
     physics = dataclasses.replace(physics or PhysicsSettings(), servo_noise_rad=float(noise_rad))
-    if model is None:
-        model, _ = load_robot(scene=True)
+    model = model if model is not None else calibration_scene(model_file)
     data = mujoco.MjData(model)
     bot = ServoBot(
         model, data, physics=physics, gaits=library, rng=np.random.default_rng([seed, g])
@@ -99,13 +114,26 @@ def measure_gait(
     frame_cb = None if on_frame is None else (lambda d: on_frame(g, d))
     for _ in range(settle_cycles):
         bot.run_gait(g, on_frame=frame_cb)
-    out = np.empty((cycles, 3))
+    meter = EnergyMeter(model, bot.actuators, servo)
+    out = np.empty((cycles, len(COLUMNS)))
     for k in range(cycles):
-        res = bot.run_gait(g, on_frame=frame_cb)
-        out[k] = res.ftdh
+        res = bot.run_gait(g, on_frame=frame_cb, on_step=meter.record)
+        out[k, :3] = res.ftdh
+        out[k, 3] = meter.take()
         if on_cycle is not None:
             on_cycle(g, res, bot)
     return out
+
+
+def calibration_scene(model_file: ModelFile = None) -> mujoco.MjModel:
+    """The calibration scene of ``model_file`` (None = the shipped robot), compiled once per
+    process and file contents (each walk has its own ``MjData``)."""
+    return _compiled_scene(str(scene_path(model_file)), model_sha256(model_file))
+
+
+@functools.cache
+def _compiled_scene(path: str, sha256: str) -> mujoco.MjModel:
+    return load_robot(scene=True, model=path)[0]
 
 
 def _measure_one(args: tuple) -> np.ndarray:
@@ -114,10 +142,10 @@ def _measure_one(args: tuple) -> np.ndarray:
 
 
 def summarise(per_cycle: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and per-cycle standard deviation (ddof 0) per gait, each (16, 3); NaN rows for
-    gaits not measured."""
-    values = np.full((N_GAITS, 3), np.nan)
-    std = np.full((N_GAITS, 3), np.nan)
+    """Mean and per-cycle standard deviation (ddof 0) per gait, each (16, 4) (``COLUMNS``);
+    NaN rows for gaits not measured."""
+    values = np.full((N_GAITS, len(COLUMNS)), np.nan)
+    std = np.full((N_GAITS, len(COLUMNS)), np.nan)
     for g, a in per_cycle.items():
         values[g] = a.mean(axis=0)
         std[g] = a.std(axis=0)
@@ -125,19 +153,24 @@ def summarise(per_cycle: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]
 
 
 def measure_all(
-    gaits: Iterable[int] = range(N_GAITS), *, workers: int = 1, **kwargs
+    gaits: Iterable[int] = range(N_GAITS),
+    *,
+    workers: int = 1,
+    executor: Executor | None = None,
+    **kwargs,
 ) -> dict[int, np.ndarray]:
-    """Per-cycle arrays of several gaits (``measure_gait`` keyword arguments), optionally in a
-    process pool of ``workers``. Callbacks force ``workers = 1``."""
+    """Per-cycle arrays of several gaits (``measure_gait`` keyword arguments), each gait one
+    run of ``executor`` (default ``make_executor(None, workers)``: 1 = here, k = a pool of k).
+    Callbacks (``on_cycle``, ``on_frame``) run the gaits here, one after another. Raises
+    ``infra.executors.BatchError`` naming each gait that failed (e.g. a ``PhysicsError``)."""
     gs = [check_gait(g) for g in gaits]
-    if workers > 1 and len(gs) > 1 and not kwargs.get("on_cycle") and not kwargs.get("on_frame"):
-        kwargs.pop("model", None)
-        with ProcessPoolExecutor(max_workers=min(workers, len(gs))) as pool:
-            arrays = list(pool.map(_measure_one, [(g, kwargs) for g in gs]))
-        return dict(zip(gs, arrays, strict=True))
-    if kwargs.get("model") is None:
-        kwargs["model"], _ = load_robot(scene=True)
-    return {g: measure_gait(g, **kwargs) for g in gs}
+    if kwargs.get("on_cycle") or kwargs.get("on_frame"):
+        executor = SerialExecutor()  # callbacks cannot cross processes
+    outcomes = run_in_order(
+        executor or make_executor(None, workers), _measure_one, [(g, kwargs) for g in gs]
+    )
+    arrays = values_or_raise(outcomes, [f"gait {g}" for g in gs])
+    return dict(zip(gs, arrays, strict=True))
 
 
 def measure_gaits(
@@ -149,21 +182,25 @@ def measure_gaits(
     noise_rad: float = DEFAULTS.noise_rad,
     library: GaitLibrary | None = None,
     physics: PhysicsSettings | None = None,
+    model_file: ModelFile = None,
     workers: int = 1,
+    executor: Executor | None = None,
     on_cycle: CycleCallback | None = None,
     on_frame: FrameCallback | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The measured gait table: (values (16, 3), std (16, 3)) of (F cm, T cm, dH deg), mean
-    and per-cycle standard deviation; rows of gaits not in ``gaits`` are NaN."""
+    """The measured gait table: (values (16, 4), std (16, 4)) of (F cm, T cm, dH deg,
+    energy J), mean and per-cycle standard deviation; rows of gaits not in ``gaits`` are NaN."""
     per_cycle = measure_all(
         gaits,
         workers=workers,
+        executor=executor,
         cycles=cycles,
         settle_cycles=settle_cycles,
         seed=seed,
         noise_rad=noise_rad,
         library=library,
         physics=physics,
+        model_file=model_file,
         on_cycle=on_cycle,
         on_frame=on_frame,
     )

@@ -38,6 +38,7 @@ from evolve.stages import (
 )
 from evolve.starts import colony_starts
 from evolve.table import GaitTable
+from infra.executors import Executor
 from infra.io import atomic_write_json
 
 FIGURE10_SEED = 10
@@ -88,9 +89,11 @@ def run_colony_stage(
     colony: ColonySettings = DEFAULT_COLONY,
     resume: bool = False,
     on_generation: OnGeneration | None = None,
+    executor: Executor | None = None,
 ) -> dict[str, Any]:
     """Colony stage (SPEC §7) into ``out/colony``; returns the summary (also
-    ``summary.json``).
+    ``summary.json``). ``executor``: where the populations evolve, as in
+    ``evolve.stages.run_navigation``.
 
     Figure 9: the best section of each saved generation of each population, as a colony
     with the fixed ``navigation`` section, from the same ``ga.test_starts`` fresh colony
@@ -107,7 +110,7 @@ def run_colony_stage(
     stage = colony_stage(world, colony, navigation)
     results, test_starts, doc = _run_populations(
         stage, folder, table=table, ga=ga, world=world, resume=resume,
-        on_generation=on_generation,
+        on_generation=on_generation, executor=executor,
     )  # fmt: skip
     gens = save_generations(ga)
     inner, squares = figure9_test(folder, stage, table, world, gens, ga.populations, test_starts)

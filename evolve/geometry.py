@@ -57,6 +57,8 @@ P_OR_A = 18
 P_OR_B = 19
 P_OBJ_RANGE = 20
 P_COST = 21
+"""The paper's constant ``gait_cost_v`` and ``still_gait`` (P_STILL), kept for reference: what a
+cycle costs is read from the ``P_GAIT_COST`` block only."""
 P_STILL = 22
 P_LOW = 23
 P_EMPTY = 24
@@ -64,8 +66,11 @@ P_CHARGED = 25
 P_BACKUP_GAIT = 26
 P_BACKUP_N = 27
 P_MAX_BRANCH = 28
-P_N_LIGHTS = 29
-P_LIGHTS = 30
+P_GAIT_COST = 29
+"""Power used by one cycle of gait g, volts, is p[P_GAIT_COST + g] (16 entries, the power model
+``WorldSettings.gait_costs_v``: the kernel and the interpreter read only these)."""
+P_N_LIGHTS = P_GAIT_COST + 16
+P_LIGHTS = P_N_LIGHTS + 1
 """Light k sits at (p[P_LIGHTS + 2k], p[P_LIGHTS + 2k + 1])."""
 
 
@@ -115,6 +120,7 @@ def _pack_cached(world: WorldSettings) -> np.ndarray:
     vals[P_BACKUP_GAIT] = world.backup_gait
     vals[P_BACKUP_N] = world.backup_cycles
     vals[P_MAX_BRANCH] = world.max_consecutive_branches
+    vals[P_GAIT_COST : P_GAIT_COST + 16] = world.gait_costs_v()
     vals[P_N_LIGHTS] = len(world.lights)
     for sx, sy in world.lights:
         vals += [float(sx), float(sy)]

@@ -209,8 +209,7 @@ class _Run:
         A move that another robot blocked keeps the pose and still counts and costs."""
         blocked = bool(self.world.step(gait))
         x, y, h = self.world.pose()
-        if gait != self.s.still_gait:
-            self.power = self.power - self.s.gait_cost_v
+        self.power = self.power - self.p[geo.P_GAIT_COST + gait]
         self.steps += 1
         self.branches = 0
         self.collisions += blocked

@@ -51,12 +51,11 @@ from evolve.geometry import (
     P_BACKUP_GAIT,
     P_BACKUP_N,
     P_CHARGED,
-    P_COST,
     P_EMPTY,
+    P_GAIT_COST,
     P_GRID_N,
     P_LOW,
     P_MAX_BRANCH,
-    P_STILL,
     disc_bits,
     docked,
     killed,
@@ -137,8 +136,7 @@ def _walk(gait, table, p, x, y, h, power, lo, hi, squares, inner, others, me, mi
     blocked = _blocked(nx, ny, others, me, min_dist)
     if not blocked:
         x, y, h = nx, ny, nh
-    if gait != int(p[P_STILL]):
-        power = power - p[P_COST]
+    power = power - p[P_GAIT_COST + gait]
     if killed(x, y, p):
         return x, y, h, power, lo, hi, squares, inner, END_KILL_ZONE, blocked
     if power < p[P_EMPTY]:

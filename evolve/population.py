@@ -272,12 +272,7 @@ class PopulationRun:
         else:
             self.pop = gaops.next_generation(self.pop, fit, self.rng, self.ga)
             self.generation += 1
-        record = {
-            "stage": self.stage.name,
-            "population": self.k,
-            "generations": self.ga.generations,
-        }
-        return record | dict(zip(HISTORY_COLUMNS, row, strict=True))
+        return generation_record(self.stage.name, self.k, self.ga.generations, row)
 
     def _finish(self, best: int, fitness: np.ndarray) -> None:
         hist = np.asarray(self.history, dtype=np.float64)
@@ -314,6 +309,43 @@ def evolve_population(
     return run.result
 
 
+def generation_record(stage: str, k: int, generations: int, row: Any) -> dict[str, Any]:
+    """The ``on_generation`` record of population ``k`` for one ``HISTORY_COLUMNS`` row."""
+    g, best, mean, docked, unique = row
+    return {"stage": stage, "population": k, "generations": generations} | dict(
+        zip(HISTORY_COLUMNS, (int(g), float(best), float(mean), float(docked), int(unique)),
+            strict=True)
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PopulationJob:
+    """One population's whole evolution as a run of an executor (picklable plain data):
+    ``evolve_population(k, stage, folder, **kwargs)``."""
+
+    k: int
+    stage: Stage
+    folder: Path
+    kwargs: dict[str, Any]
+    """``PopulationRun`` keyword arguments (seed sequence, table, settings, resume)."""
+    threads: int | None = None
+    """Threads of the numba kernel while this population evolves (None = as they are)."""
+
+
+def run_population_job(job: PopulationJob) -> PopulationResult:
+    """Evolve one population where an executor runs it (no progress callback crosses)."""
+    if job.threads is None:
+        return evolve_population(job.k, job.stage, job.folder, **job.kwargs)
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(job.threads, numba.config.NUMBA_NUM_THREADS))
+    try:
+        return evolve_population(job.k, job.stage, job.folder, **job.kwargs)
+    finally:
+        numba.set_num_threads(before)
+
+
 def write_history(path: Path, hist: np.ndarray) -> None:
     """``history_pop{k}.csv`` of a finished population (``HISTORY_COLUMNS``)."""
     buf = io.StringIO()
@@ -329,12 +361,15 @@ __all__ = [
     "HISTORY_COLUMNS",
     "Generation",
     "OnGeneration",
+    "PopulationJob",
     "PopulationResult",
     "PopulationRun",
     "Stage",
     "StageError",
     "evaluate_sections",
     "evolve_population",
+    "generation_record",
+    "run_population_job",
     "save_generations",
     "stage_seeds",
     "write_history",

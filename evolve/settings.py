@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -66,9 +67,20 @@ class WorldSettings:
     """Object sensors fire when a wall lies within this distance in their span [chosen]."""
 
     gait_cost_v: float = 0.0209
-    """Power used by every gait cycle except gait 7, volts [paper]."""
+    """Power used by every gait cycle except gait 7, volts (power model ``paper``) [paper]."""
     still_gait: int = 7
-    """The gait that costs no power (stand still) [paper]."""
+    """The gait that costs no power in the ``paper`` power model (stand still) [paper]."""
+    power_model: str = "paper"
+    """What a gait cycle costs: ``"paper"`` = ``gait_cost_v`` for every gait but
+    ``still_gait`` (SPEC §3) [paper]; ``"table"`` = gait g costs ``gait_dv[g]`` volts, its
+    voltage drop measured from physics by the calibration (``calibration.energy``; gait 7
+    costs its measured standing drop too) [chosen]."""
+    gait_dv: tuple[float, ...] | None = None
+    """Voltage drop per cycle of each of the 16 gaits, volts, for ``power_model = "table"``
+    (``with_table_power`` fills it from a calibration file's ``dV`` column)."""
+    capacitance_f: float = 150.0
+    """Capacitor bank, farads (6 pairs of 50 F in series, paper §II): converts a gait's
+    measured energy per cycle into its voltage drop (``calibration.energy``) [paper]."""
     low_power_v: float = 4.0
     """Low-power sensor active below this, volts [paper]."""
     empty_power_v: float = 2.7
@@ -101,8 +113,29 @@ class WorldSettings:
         denominator."""
         return (self.grid_n - 2) ** 2
 
+    def gait_costs_v(self) -> tuple[float, ...]:
+        """Power used by one cycle of each of the 16 gaits, volts, under ``power_model``;
+        ``ValueError`` naming the problem for an unknown model or a bad ``gait_dv``."""
+        if self.power_model == "paper":
+            return tuple(0.0 if g == self.still_gait else self.gait_cost_v for g in range(16))
+        if self.power_model != "table":
+            raise ValueError(f"power_model must be 'paper' or 'table', got {self.power_model!r}")
+        dv = self.gait_dv
+        if dv is None or len(dv) != 16:
+            n = "none" if dv is None else len(dv)
+            raise ValueError(f"power_model 'table' needs gait_dv: 16 voltage drops, got {n}")
+        bad = [g for g, v in enumerate(dv) if not (math.isfinite(v) and v >= 0.0)]
+        if bad:
+            raise ValueError(f"gait_dv must be finite volts >= 0; gaits {bad} are not")
+        return tuple(float(v) for v in dv)
+
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+
+def with_table_power(world: WorldSettings, dv: Any) -> WorldSettings:
+    """``world`` with the ``table`` power model: gait g costs ``dv[g]`` volts per cycle."""
+    return dataclasses.replace(world, power_model="table", gait_dv=tuple(float(v) for v in dv))
 
 
 @dataclass(frozen=True)
@@ -207,9 +240,10 @@ def settings_json(*objs: Any) -> str:
 
 
 __all__ = [
-    "WorldSettings",
     "ColonySettings",
     "GASettings",
+    "WorldSettings",
     "navigation_ga_settings",
     "settings_json",
+    "with_table_power",
 ]

@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -31,17 +32,21 @@ from evolve.interpreter import END_DOCKED
 from evolve.population import (
     CHECKPOINT_EVERY,
     OnGeneration,
+    PopulationJob,
     PopulationResult,
     Stage,
     StageError,
     evaluate_sections,
     evolve_population,
+    generation_record,
+    run_population_job,
     save_generations,
     stage_seeds,
 )
 from evolve.settings import GASettings, WorldSettings, navigation_ga_settings, settings_json
 from evolve.starts import coverage_starts, navigation_starts
 from evolve.table import GaitTable
+from infra.executors import BatchError, Executor, Failed, RayExecutor, values_or_raise
 from infra.io import atomic_write_json, atomic_write_text
 
 FIGURE10_START = (415.0, 252.0, 98.0)
@@ -136,6 +141,7 @@ def _run_populations(
     world: WorldSettings,
     resume: bool,
     on_generation: OnGeneration | None,
+    executor: Executor | None = None,
 ) -> tuple[list[PopulationResult], np.ndarray, dict[str, Any]]:
     """Evolve all populations of a stage; returns (results, test starts, settings doc)."""
     _check_ga(ga)
@@ -144,24 +150,52 @@ def _run_populations(
     settings_text = json.dumps(doc, sort_keys=True)
     atomic_write_json(folder / "settings.json", doc)
     test_seq, pop_seqs = stage_seeds(ga.seed, stage.name, ga.populations)
-    results = [
-        evolve_population(
-            k,
-            stage,
-            folder,
-            seed_seq=pop_seqs[k],
-            table=table,
-            ga=ga,
-            world=world,
-            settings_text=settings_text,
-            resume=resume,
-            on_generation=on_generation,
-        )
+    kwargs = [
+        dict(seed_seq=pop_seqs[k], table=table, ga=ga, world=world,
+             settings_text=settings_text, resume=resume)
         for k in range(ga.populations)
-    ]
+    ]  # fmt: skip
+    if executor is None:
+        results = [
+            evolve_population(k, stage, folder, on_generation=on_generation, **kwargs[k])
+            for k in range(ga.populations)
+        ]
+    else:
+        threads = _kernel_threads(executor)
+        jobs = [PopulationJob(k, stage, folder, kwargs[k], threads) for k in range(ga.populations)]
+        results = _populations_on(executor, jobs, on_generation)
     test_rng = np.random.Generator(np.random.PCG64(test_seq))
     test_starts = stage.starts(test_rng, ga.test_starts, world)
     return results, test_starts, doc
+
+
+def _kernel_threads(executor: Executor) -> int:
+    """numba threads per population when an executor runs populations side by side: this
+    machine's cores shared out among its workers (one each on Ray, whose tasks take one CPU)."""
+    if isinstance(executor, RayExecutor):
+        return 1
+    cores = os.cpu_count() or 1
+    return max(1, cores // (getattr(executor, "workers", None) or cores))
+
+
+def _populations_on(
+    executor: Executor, jobs: list[PopulationJob], on_generation: OnGeneration | None
+) -> list[PopulationResult]:
+    """Each population as one run of ``executor``; ``on_generation`` hears a population's
+    generations when it finishes."""
+    outcomes: list[Any] = [None] * len(jobs)
+    for k, outcome in executor.imap(run_population_job, jobs):
+        outcomes[k] = outcome
+        if on_generation is not None and not isinstance(outcome, Failed):
+            res, job = outcome.value, jobs[k]
+            for row in res.history:
+                on_generation(
+                    generation_record(job.stage.name, k, job.kwargs["ga"].generations, row)
+                )
+    try:
+        return values_or_raise(outcomes, [f"population {k}" for k in range(len(jobs))])
+    except BatchError as exc:
+        raise StageError(f"{exc}; the checkpoints are kept, rerun with --resume") from exc
 
 
 # --------------------------------------------------------------------------- navigation
@@ -175,8 +209,13 @@ def run_navigation(
     world: WorldSettings = DEFAULT_WORLD,
     resume: bool = False,
     on_generation: OnGeneration | None = None,
+    executor: Executor | None = None,
 ) -> dict[str, Any]:
     """Navigation stage (SPEC §6) into ``out/navigation``; returns the summary dict.
+
+    The populations evolve one after another in this process (the numba kernel uses every
+    core), or each as one run of ``executor`` (``infra.executors``; progress then arrives
+    per finished population): the same seeds give the same results either way.
 
     Each population's final best runs from the same ``ga.test_starts`` fresh start poses;
     the one with the highest mean run fitness becomes ``navigation/best.txt``. Summary keys:
@@ -196,6 +235,7 @@ def run_navigation(
         world=world,
         resume=resume,
         on_generation=on_generation,
+        executor=executor,
     )
     bests = np.stack([r.best for r in results])
     run_fit, ev, _, inverse = evaluate_sections(bests, test_starts, stage, table, world)
@@ -275,8 +315,10 @@ def run_coverage(
     world: WorldSettings = DEFAULT_WORLD,
     resume: bool = False,
     on_generation: OnGeneration | None = None,
+    executor: Executor | None = None,
 ) -> dict[str, Any]:
     """Coverage stage (SPEC §5) into ``out/coverage`` with Figures 8–10; returns the summary.
+    ``executor``: where the populations evolve, as in ``run_navigation``.
 
     Figure 9: the best section of each saved generation of each population runs (with the
     fixed ``navigation`` section) from the same ``ga.test_starts`` fresh coverage starts;
@@ -298,6 +340,7 @@ def run_coverage(
         world=world,
         resume=resume,
         on_generation=on_generation,
+        executor=executor,
     )
     gens = save_generations(ga)
     inner, squares = figure9_test(folder, stage, table, world, gens, ga.populations, test_starts)

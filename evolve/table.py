@@ -3,10 +3,16 @@
 A gait table is a float64 array of shape (16, 3): row g holds (F, T, dH) of gait g, with F
 the forward and T the sideways displacement in cm (T < 0 = left) in the frame the robot had
 when the cycle began, and dH the heading change in degrees (< 0 = left, i.e. anticlockwise).
+
+A calibration file may also carry, per gait, the electrical energy of one cycle and the
+capacitor voltage drop it causes (``ENERGY_COLUMNS``: ``energy_J``, ``energy_J_std``, ``dV``,
+``dV_std``; J and V, mean and per-cycle std), measured by ``calibration.energy``: the
+``table`` power model (``evolve.settings.with_table_power``) charges each gait its ``dV``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from evolve.settings import WorldSettings, with_table_power
 from infra.io import read_json
 
 N_GAITS = 16
@@ -45,6 +52,15 @@ PAPER_TABLE = np.array(
 PAPER_TABLE.setflags(write=False)
 
 
+ENERGY_COLUMNS = ("energy_J", "energy_J_std", "dV", "dV_std")
+"""Columns of ``GaitTable.energy``: energy per cycle (J) and capacitor voltage drop per cycle
+(V), each mean and per-cycle standard deviation."""
+DV = ENERGY_COLUMNS.index("dV")
+"""Column of the mean voltage drop per cycle in ``GaitTable.energy``."""
+DV_STD = ENERGY_COLUMNS.index("dV_std")
+"""Column of its per-cycle standard deviation."""
+
+
 class GaitTableError(ValueError):
     """A gait table or gait-table file is malformed."""
 
@@ -57,6 +73,13 @@ class GaitTable:
     std: np.ndarray | None = None
     meta: dict[str, Any] = field(default_factory=dict)
     source: str = "paper"
+    energy: np.ndarray | None = None
+    """(16, 4) per gait, columns ``ENERGY_COLUMNS``; None when the file measured none."""
+
+    @property
+    def dv(self) -> np.ndarray | None:
+        """Measured capacitor voltage drop per cycle of each gait, (16,) V, or None."""
+        return None if self.energy is None else self.energy[:, DV]
 
 
 def validate_table(values: Any, *, name: str = "gait table") -> np.ndarray:
@@ -86,25 +109,32 @@ def table_from_json(doc: dict[str, Any], *, name: str = "gait table") -> GaitTab
         raise GaitTableError(f"{name}: 'gaits' must be a list of 16 rows")
     values = np.full((N_GAITS, 3), math.nan)
     std = np.full((N_GAITS, 3), math.nan)
+    has_energy = bool(rows) and isinstance(rows[0], dict) and "dV" in rows[0]
+    energy = np.full((N_GAITS, len(ENERGY_COLUMNS)), math.nan) if has_energy else None
     seen: set[int] = set()
     for i, row in enumerate(rows):
         try:
             g = int(row["gait"])
             ftdh = [float(row[k]) for k in ("F", "T", "dH")]
             spread = [float(row.get(k + "_std", math.nan)) for k in ("F", "T", "dH")]
+            power = [float(row[k]) for k in ENERGY_COLUMNS] if has_energy else None
         except (KeyError, TypeError, ValueError) as exc:
             raise GaitTableError(f"{name}: row {i} is malformed ({exc!r})") from exc
         if not 0 <= g < N_GAITS:
             raise GaitTableError(f"{name}: row {i} names gait {g}, outside 0-15")
         values[g], std[g] = ftdh, spread
+        if energy is not None:
+            energy[g] = power
         if g in seen:
             raise GaitTableError(f"{name}: gait {g} appears twice")
         seen.add(g)
     missing = sorted(set(range(N_GAITS)) - seen)
     if missing:
         raise GaitTableError(f"{name}: missing gaits {missing}")
+    if energy is not None and not (np.all(np.isfinite(energy)) and np.all(energy >= 0.0)):
+        raise GaitTableError(f"{name}: energy and dV must be finite and >= 0 for every gait")
     meta = {k: v for k, v in doc.items() if k != "gaits"}
-    return GaitTable(validate_table(values, name=name), std, meta, source=name)
+    return GaitTable(validate_table(values, name=name), std, meta, source=name, energy=energy)
 
 
 def load_table(spec: str | Path | None = "paper") -> GaitTable:
@@ -115,10 +145,35 @@ def load_table(spec: str | Path | None = "paper") -> GaitTable:
     return table_from_json(doc, name=str(spec))
 
 
+POWER_MODELS = ("paper", "table")
+"""``WorldSettings.power_model`` choices (``servobot evolve --power``)."""
+
+
+def with_power_model(world: WorldSettings, power: str, table: GaitTable) -> WorldSettings:
+    """``world`` under the power model ``power``: ``"paper"`` (unchanged, SPEC §3) or ``"table"``
+    (each gait costs ``table``'s measured ``dV``; ``GaitTableError`` if it has none)."""
+    if power not in POWER_MODELS:
+        raise GaitTableError(f"power model must be one of {POWER_MODELS}, got {power!r}")
+    if power == "paper":
+        return dataclasses.replace(world, power_model="paper")
+    if table.dv is None:
+        raise GaitTableError(
+            f"power model 'table' needs a gait table with measured dV per gait; {table.source} "
+            "has none (calibrate with servobot calibrate, which measures it)"
+        )
+    return with_table_power(world, table.dv)
+
+
 def table_to_json(
-    values: np.ndarray, std: np.ndarray | None = None, *, cycles: int = 0, **meta: Any
+    values: np.ndarray,
+    std: np.ndarray | None = None,
+    *,
+    cycles: int = 0,
+    energy: np.ndarray | None = None,
+    **meta: Any,
 ) -> dict[str, Any]:
-    """Build the calibration JSON document for a (16, 3) table (inverse of ``table_from_json``)."""
+    """Build the calibration JSON document for a (16, 3) table (inverse of ``table_from_json``);
+    ``energy`` (16, 4): the ``ENERGY_COLUMNS`` of every gait."""
     values = validate_table(values)
     rows = []
     for g in range(N_GAITS):
@@ -126,6 +181,8 @@ def table_to_json(
         row.update(F=float(values[g, 0]), T=float(values[g, 1]), dH=float(values[g, 2]))
         if std is not None:
             row.update(F_std=float(std[g, 0]), T_std=float(std[g, 1]), dH_std=float(std[g, 2]))
+        if energy is not None:
+            row.update(zip(ENERGY_COLUMNS, (float(v) for v in energy[g]), strict=True))
         row["cycles"] = int(cycles)
         rows.append(row)
     units = {"F": "cm", "T": "cm", "dH": "deg"}

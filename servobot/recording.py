@@ -746,9 +746,10 @@ class Recording:
 
 def calibration_recorder(rec: Recording, settings: Any) -> dict[str, Any]:
     """Keyword arguments of ``calibration.calibrate.calibrate`` that record its walks in
-    ``rec``: the calibration scene's model, ``on_frame`` (bodies and feet every servo frame)
-    and ``on_cycle`` (F, T, dH of each measured cycle). Gait g's walk is shifted to start at
-    g × (its duration + 1 s) on ``sim_time``, so the 16 walks follow one another."""
+    ``rec``: the calibration scene's model (``settings.model``), ``on_frame`` (bodies and feet
+    every servo frame) and ``on_cycle`` (F, T, dH of each measured cycle). Gait g's walk is
+    shifted to start at g × (its duration + 1 s) on ``sim_time``, so the 16 walks follow one
+    another."""
     import mujoco
 
     from servo_mj.robot import constants as C
@@ -756,7 +757,7 @@ def calibration_recorder(rec: Recording, settings: Any) -> dict[str, Any]:
     from servo_mj.robot.model import load_robot
     from servo_mj.robot.settings import PhysicsSettings
 
-    model, _ = load_robot(scene=True)
+    model, _ = load_robot(scene=True, model=settings.model)
     feet = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, n) for n in C.foot_sites()]
     physics = PhysicsSettings()
     cycle_s = len(GaitLibrary().frames(0)) * physics.frame_s

@@ -38,6 +38,7 @@ from evolve.settings import WorldSettings, settings_json
 from evolve.stages import run_coverage, run_navigation
 from evolve.starts import coverage_starts
 from evolve.table import GaitTable, load_table
+from infra.executors import Executor, make_executor
 from infra.io import atomic_write_json, atomic_write_text
 from servobot.recording import Recording, calibration_recorder
 from servobot.reproduce_report import write_report
@@ -113,7 +114,7 @@ class _Pipeline:
     out: Path
     s: ReproduceSettings
     world: WorldSettings
-    workers: int | None
+    executor: Executor
     log: Callable[[str], None]
     on_generation: OnGeneration | None
     on_run: Callable[[dict[str, Any]], None] | None
@@ -216,8 +217,8 @@ class _Pipeline:
             try:
                 validate(
                     read_chromosome(self.out / "coverage" / f"best_pop{k}.txt"), starts,
-                    table=table, world=self.world, out_dir=sub, rrd=True, workers=self.workers,
-                    max_steps=s.validate_max_steps, on_run=self.on_run,
+                    table=table, world=self.world, out_dir=sub, rrd=True, executor=self.executor,
+                    max_steps=s.validate_max_steps, model=s.model, on_run=self.on_run,
                     meta={"finalist": k, "source": f"coverage/best_pop{k}.txt"},
                 )  # fmt: skip
             except ValidationError as exc:  # a bad finalist must not stop the others
@@ -242,9 +243,12 @@ def resolve_settings(
     quick: bool = False,
     seed: int | None = None,
     validate_starts: int | None = None,
+    model: str | Path | None = None,
 ) -> ReproduceSettings:
     """``settings`` (else paper scale, or ``quick_settings()``) with the overrides applied."""
     s = settings or (quick_settings() if quick else ReproduceSettings())
+    if model is not None:
+        s = dataclasses.replace(s, model=str(model))
     if seed is not None:
         s = dataclasses.replace(s, seed=int(seed))
     if validate_starts is not None:
@@ -259,6 +263,7 @@ def reproduce(
     quick: bool = False,
     seed: int | None = None,
     workers: int | None = None,
+    executor: Executor | None = None,
     validate_starts: int | None = None,
     settings: ReproduceSettings | None = None,
     world: WorldSettings | None = None,
@@ -269,8 +274,10 @@ def reproduce(
     """Run (or resume) every stage into ``out``; return ``{"stages", "report", "wall_s"}``.
 
     ``settings`` wins over ``quick``; ``seed`` and ``validate_starts`` override its fields.
-    ``workers``: processes for validation (None = every core; calibration records its walks,
-    so it runs in this process). Each stage
+    ``executor`` runs the validation starts (default ``make_executor(None, workers)``: 1 =
+    here, else a pool of ``workers`` processes, None = every core); calibration records its
+    walks, so it runs in this process, and evolution runs here (the kernel uses every core).
+    Each stage
     record says whether it ran now or was skipped as already done, and its wall time.
     ``on_generation`` (GA progress) and ``on_run`` (each finished validation run) are the
     progress callbacks; ``log`` gets one line per stage event (default: stderr).
@@ -284,7 +291,8 @@ def reproduce(
     out.mkdir(parents=True, exist_ok=True)
     doc = {"ReproduceSettings": s.to_dict(), **json.loads(settings_json(world))}
     atomic_write_text(out / "settings.json", json.dumps(doc, indent=2) + "\n")
-    run = _Pipeline(out, s, world, workers, log, on_generation, on_run)
+    ex = executor or make_executor(None, workers)
+    run = _Pipeline(out, s, world, ex, log, on_generation, on_run)
     try:
         table = run.calibration()
         navigation = run.navigation(table)

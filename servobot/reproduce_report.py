@@ -18,6 +18,7 @@ from calibration.report import TOLERANCE, within_tolerance
 from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE, load_table
 from infra.io import atomic_write_text
+from servo_mj.robot.model import model_label
 from servobot.reproduce_settings import STAGES, ReproduceSettings
 
 
@@ -72,6 +73,9 @@ def _calibration_section(out: Path) -> list[str]:
         f"within: {int(ok.all(axis=1).sum())} of 16. Std = per-cycle standard deviation.",
         "",
     ]
+    if table.dv is not None:
+        dv = ", ".join(f"{g}: {v:.4f}" for g, v in enumerate(table.dv))
+        lines += [f"Voltage drop per cycle from the servo model (V; paper 0.0209): {dv}.", ""]
     return lines
 
 
@@ -197,7 +201,8 @@ def write_report(
         "# ServoBot colony reproduction — report",
         "",
         f"Written {now} on {platform.node() or 'this machine'} ({ncpu} CPU cores, "
-        f"Python {platform.python_version()}). Settings: `settings.json`; seed {s.seed}.",
+        f"Python {platform.python_version()}). Settings: `settings.json`; seed {s.seed}. "
+        f"Robot: {model_label(s.model)}.",
         "",
         "| stage | wall time | this invocation |",
         "|---|---|---|",

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from calibration.measure import CalibrationSettings
 from evolve.settings import GASettings, navigation_ga_settings
+from servo_mj.robot.model import model_sha256
 
 STAGES = ("calibration", "navigation", "coverage", "validation")
 """The stages of a reproduction, in order (the report is always rewritten)."""
@@ -45,6 +47,9 @@ class ReproduceSettings:
     """Steps of a validation run (SPEC §5: 600)."""
     seed: int = 0
     """Seed of every random draw (calibration noise, GA, test and validation starts)."""
+    model: str | None = None
+    """The robot: None = the shipped ServoBot, else a model file (``servobot variant``) that
+    the calibration measures and the validation walks."""
 
     def calibration(self) -> CalibrationSettings:
         """Settings of the calibration stage (the shipped gait parameters, no fit)."""
@@ -52,6 +57,7 @@ class ReproduceSettings:
             cycles=self.calibration_cycles,
             settle_cycles=self.calibration_settle_cycles,
             seed=self.seed,
+            model=self.model,
         )
 
     def navigation_ga(self) -> GASettings:
@@ -109,17 +115,25 @@ _STAGE_FIELDS: dict[str, tuple[str, ...]] = {
 
 
 def stage_key(settings: ReproduceSettings, stage: str) -> dict[str, Any]:
-    """The settings a stage's result depends on: its own fields and those of earlier stages."""
+    """The settings a stage's result depends on: its own fields and those of earlier stages;
+    with a model file, its path and content hash too (every stage depends on the robot)."""
     d = settings.to_dict()
     key: dict[str, Any] = {}
     for s in STAGES[: STAGES.index(stage) + 1]:
         key.update({f: d[f] for f in _STAGE_FIELDS[s]})
+    if settings.model is not None:
+        key.update(model=settings.model, model_sha256=model_sha256(settings.model))
     return key
 
 
 def check_settings(s: ReproduceSettings) -> None:
-    """Every budget is an integer ≥ 1 (settle cycles and seed ≥ 0), else ``ReproduceError``."""
+    """Every budget is an integer ≥ 1 (settle cycles and seed ≥ 0), else ``ReproduceError``;
+    a model file must exist."""
+    if s.model is not None and not Path(s.model).is_file():
+        raise ReproduceError(f"robot model {s.model}: no such file")
     for f in dataclasses.fields(s):
+        if f.name == "model":
+            continue
         v = getattr(s, f.name)
         low = 0 if f.name in ("calibration_settle_cycles", "seed") else 1
         if not isinstance(v, int) or v < low:

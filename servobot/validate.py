@@ -42,8 +42,8 @@ from evolve.settings import WorldSettings
 from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
 from infra.executors import Executor, Failed, make_executor
-from servo_mj.robot.model import model_sha256
-from servo_mj.world.arena import ArenaSettings, overlaps_station
+from servo_mj.robot.model import ModelFile, model_label, model_sha256
+from servo_mj.world.arena import ArenaSettings, default_robot, overlaps_station
 from servobot.validation_report import summarise, write_report
 
 MODE = "coverage"
@@ -69,6 +69,8 @@ class StartJob:
     rrd_path: str | None
     seed: int = 0
     """Seed of this run's servo-noise generator: ``default_rng((seed, index))``."""
+    model: str | None = None
+    """The robot's model file (None = the shipped ServoBot)."""
 
 
 def check_start(
@@ -133,26 +135,30 @@ def _find_sha(meta: Any) -> str | None:
     return None
 
 
-def load_checked_table(spec: str) -> tuple[GaitTable, str | None]:
+def load_checked_table(spec: str, model: ModelFile = None) -> tuple[GaitTable, str | None]:
     """Load ``paper`` or a calibration file; refuse a file made for another robot model.
 
-    Returns the table and a warning (or None). Raises ``ValidationError`` naming both model
-    hashes when the file's model sha256 differs from the current ServoBot model's.
+    ``model``: the robot the physics runs (None = the shipped ServoBot, else a model file).
+    Returns the table and a warning (or None). Raises ``ValidationError`` naming both models
+    and their hashes when the file's model sha256 differs from ``model``'s.
     """
     try:
         table = load_table(spec)
-    except GaitTableError as exc:
+        current = model_sha256(model)
+    except (GaitTableError, FileNotFoundError) as exc:
         raise ValidationError(f"gait table: {exc}") from exc
     if spec == "paper":
         return table, None
-    current = model_sha256()
     recorded = _find_sha(table.meta)
     if recorded is None:
         return table, f"warning: {spec} records no model sha256; cannot check it fits this robot"
     if recorded != current:
+        was = table.meta.get("model", "an unnamed robot model")
         raise ValidationError(
-            f"gait table {spec} was calibrated on another robot model: its model sha256 is "
-            f"{recorded}, the current model's (models/servobot) is {current}"
+            f"gait table {spec} was calibrated on another robot model: on {was} (sha256 "
+            f"{recorded}), but the physics runs {model_label(model)} (sha256 {current}); "
+            f"calibrate this model (servobot calibrate --model ...) or pass the model the "
+            f"table was made for"
         )
     return table, None
 
@@ -204,6 +210,7 @@ def run_start(job: StartJob) -> dict[str, Any]:
         try:
             pw = PhysicsWorld(
                 x, y, h, world=job.world, arena=job.arena, physics=job.physics,
+                robot=None if job.model is None else default_robot(job.model),
                 rng=np.random.default_rng((job.seed, job.index)),
                 on_frame=None if rec is None else _state_logger(rec),
             )  # fmt: skip
@@ -298,6 +305,7 @@ def validate(
     executor: Executor | None = None,
     max_steps: int | None = None,
     seed: int = 0,
+    model: ModelFile = None,
     on_run: Callable[[dict[str, Any]], None] | None = None,
     meta: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
@@ -305,10 +313,13 @@ def validate(
 
     ``table`` is a (16, 3) array or a ``GaitTable``; ``physics`` a ``PhysicsSettings`` (None =
     default; with ``servo_noise_rad`` > 0, run k draws its noise from
-    ``default_rng((seed, k))``). ``workers``: 1 = serial, None = one process per core
-    (ignored when ``executor`` is given). ``on_run(record)`` is called as each run finishes
-    (progress). Returns the report (and writes it into ``out_dir`` when given). Raises
-    ``ValidationError`` on bad input.
+    ``default_rng((seed, k))``). ``executor`` (``infra.executors.make_executor``) runs the
+    starts; without one, ``workers`` 1 runs them here and otherwise a pool of ``workers``
+    processes (None = one per core); records do not depend on where the runs ran. ``model``:
+    the robot in physics (None = the shipped ServoBot, else a model file such as a
+    ``servobot variant``; check the table against it with ``load_checked_table``).
+    ``on_run(record)`` is called as each run finishes (progress). Returns the report (and
+    writes it into ``out_dir`` when given). Raises ``ValidationError`` on bad input.
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
@@ -317,6 +328,8 @@ def validate(
     poses = check_starts(starts, world, arena)
     if max_steps is not None and max_steps < 0:
         raise ValidationError(f"max_steps must be >= 0, got {max_steps}")
+    if model is not None and not Path(model).is_file():
+        raise ValidationError(f"robot model {model}: no such file")
     out = None if out_dir is None else Path(out_dir)
     jobs = [
         StartJob(
@@ -329,12 +342,13 @@ def validate(
             physics=physics,
             max_steps=max_steps,
             seed=seed,
+            model=None if model is None else str(model),
             rrd_path=str(out / f"run{k}.rrd") if (rrd and out is not None) else None,
         )  # fmt: skip
         for k, p in enumerate(poses)
     ]
     t0 = time.perf_counter()
-    runs = _run_jobs(executor or make_executor(workers), jobs, on_run)
+    runs = _run_jobs(executor or make_executor(None, workers), jobs, on_run)
     wall = time.perf_counter() - t0
     tracks = {f"{w}_{r['index']}": t for r in runs for w, t in r.pop("tracks", {}).items()}
     report = {
@@ -351,6 +365,8 @@ def validate(
             "max_steps": max_steps if max_steps is not None else world.coverage_steps,
             "seed": seed,
             "mode": MODE,
+            "model": model_label(model),
+            "model_sha256": model_sha256(model),
         },
         "meta": _jsonable(meta or {}),
         "runs": runs,

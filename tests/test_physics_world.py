@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -204,3 +205,33 @@ def test_physics_run_is_deterministic_and_recording_hooks_do_not_change_it():
     )
     assert np.array_equal(a.track, b.track)
     assert len(frames) >= 8 and len(events) >= 8
+
+
+def test_sensors_read_on_demand_change_no_record():
+    """The arena steps with MuJoCo's sensor stage off and reads its rays when asked: the same
+    run with the rangefinders evaluated at every physics step gives the same track, sensor
+    readings and events, bit for bit."""
+    bits = parse_chromosome(BRANCHY)
+    table = _measured_table((8, 14), 90.0)
+    start = (W.arena_size - 42.0 - 2 * table[8, 0], 120.0, 90.0 - table[8, 2])
+    bit = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+
+    def one_run() -> tuple[np.ndarray, list, list]:
+        pw = PhysicsWorld(*start, rng=np.random.default_rng(7))
+        events: list = []
+        res = run(bits, pw, mode="coverage", max_steps=9, on_event=events.append)
+        return res.track, [(e.text, e.sensors) for e in events], pw.ray_ranges_cm()
+
+    pw = PhysicsWorld(*start)
+    assert pw.model.opt.disableflags & bit  # stepping skips the sensors
+    on_demand = one_run()
+    pw.model.opt.disableflags &= ~bit  # the shared model: restored below
+    try:
+        every_step = one_run()
+    finally:
+        pw.model.opt.disableflags |= bit
+    assert np.array_equal(on_demand[0], every_step[0])
+    assert on_demand[1] == every_step[1]
+    assert "if both-object goto 1: taken" in [t for t, _ in on_demand[1]]
+    for a, b in zip(on_demand[2], every_step[2], strict=True):
+        assert np.array_equal(a, b)

@@ -4,13 +4,12 @@ resume bit for bit, corrupt checkpoints, and a short evolution that measurably l
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from run_folder import result_files as _files
 
 from evolve import evaluate, stages
 from evolve import starts as starts_mod
@@ -26,25 +25,6 @@ TINY = GASettings(populations=2, population_size=12, generations=24, test_starts
 
 class Interrupt(Exception):
     """Raised from ``on_generation`` to simulate a killed run."""
-
-
-def _files(folder: Path) -> dict[str, bytes | dict]:
-    """Every result file under ``folder`` (npz as arrays, summary without wall time)."""
-    out: dict[str, bytes | dict] = {}
-    for p in sorted(folder.rglob("*")):
-        if not p.is_file() or p.suffix == ".png":
-            continue
-        rel = str(p.relative_to(folder))
-        if p.suffix == ".npz":
-            with np.load(p) as z:
-                out[rel] = {k: z[k].tobytes() for k in z.files}
-        elif p.name == "summary.json":
-            doc = json.loads(p.read_text())
-            doc.pop("wall_s"), doc.pop("resumed")
-            out[rel] = doc
-        else:
-            out[rel] = p.read_bytes()
-    return out
 
 
 # --------------------------------------------------------------------------- fitness, starts

@@ -1,10 +1,9 @@
 """``validate`` and ``servobot validate``: tiny-budget smoke runs, the report layout, bad input,
-a physics blow-up confined to its own run, and the executor pool."""
+a physics blow-up confined to its own run (executors: tests/test_executors.py)."""
 
 from __future__ import annotations
 
 import json
-import os
 
 import numpy as np
 import pytest
@@ -13,7 +12,7 @@ from evolve.codec import parse_chromosome
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
 from evolve.table import PAPER_TABLE, load_table, table_to_json
-from infra.executors import Failed, Ok, ProcessExecutor, SerialExecutor, run_all
+from infra.executors import SerialExecutor
 from servo_mj.world import physics_world
 from servobot.cli import validate as validate_cli
 from servobot.validate import ValidationError, validate
@@ -22,13 +21,6 @@ GENE_8 = "01 0100000 0100000 0100000 0100000\n"
 BITS = parse_chromosome(GENE_8 * 16)
 STARTS = np.array([[400.0, 200.0, 300.0], [300.0, 300.0, 45.0]])
 RECORD_KEYS = {"squares", "inner_squares", "docks", "steps", "end"}
-
-
-def _strip_times(report):
-    return [
-        {w: {k: v for k, v in (r[w] or {}).items() if k != "wall_s"} for w in ("table", "physics")}
-        for r in report["runs"]
-    ]
 
 
 @pytest.fixture(scope="module")
@@ -67,13 +59,6 @@ def test_report_layout_and_files(serial_report):
     tracks = np.load(out / "tracks.npz")
     assert tracks["physics_1"].shape == (doc["runs"][1]["physics"]["steps"] + 1, 3)
     assert np.allclose(tracks["table_0"][0], STARTS[0])
-
-
-def test_pool_gives_the_same_records_as_serial(serial_report, tmp_path):
-    _, serial = serial_report
-    pooled = validate(BITS, STARTS, table=PAPER_TABLE, workers=2, max_steps=20, out_dir=tmp_path)
-    assert _strip_times(pooled) == _strip_times(serial)
-    assert (tmp_path / "report.json").exists()
 
 
 def test_physics_blow_up_is_that_runs_error_only(tmp_path, monkeypatch):
@@ -132,6 +117,21 @@ def test_cli_smoke(chromosome, tmp_path, capsys):
     assert np.allclose([[r["start"][k] for k in "xyh"] for r in doc["runs"]], want)
     printed = capsys.readouterr().out
     assert "| # | start" in printed and "physics:" in printed
+
+
+def test_cli_station_height_reaches_the_physics_arena(chromosome, tmp_path):
+    """``--station-height`` sets the physics block's height (``ArenaSettings``; what the
+    rangefinders see of a tall block is tested in ``test_physics_world``); a height ≤ 0 is
+    refused."""
+    out = tmp_path / "tall"
+    rc = validate_cli.main(
+        [str(chromosome), "--start", "440", "250", "90", "--steps", "1", "--workers", "1",
+         "--no-progress", "--out", str(out), "--station-height", "0.30"]
+    )  # fmt: skip
+    assert rc == 0
+    doc = json.loads((out / "report.json").read_text())
+    assert doc["settings"]["ArenaSettings"]["station_height_m"] == 0.30
+    assert validate_cli.main([str(chromosome), "--station-height", "-1", "--out", str(out)]) == 2
 
 
 def test_cli_rrd_writes_one_recording_per_run(chromosome, tmp_path):
@@ -195,24 +195,6 @@ def test_cli_rejects_a_table_from_another_robot_model(chromosome, tmp_path, caps
     robot.write_text(json.dumps(dict(doc, robot="khepera")))
     assert validate_cli.main([str(chromosome), "--table", str(robot)]) == 2
     assert "khepera" in capsys.readouterr().err
-
-
-# --------------------------------------------------------------------------- the pool
-def _square_or_die(x: int) -> int:
-    if x == 2:
-        os._exit(3)  # a worker dying outright, as on a segfault
-    if x == 3:
-        raise ValueError("three is bad")
-    return x * x
-
-
-def test_pool_confines_raises_and_crashes_to_their_items():
-    out = run_all(ProcessExecutor(2), _square_or_die, [0, 1, 2, 3, 4])
-    assert out[0] == Ok(0) and out[1] == Ok(1) and out[4] == Ok(16)
-    assert isinstance(out[2], Failed) and "died" in out[2].message
-    assert isinstance(out[3], Failed) and out[3].message == "ValueError: three is bad"
-    serial = run_all(SerialExecutor(), _square_or_die, [0, 1, 3])
-    assert serial[:2] == [Ok(0), Ok(1)] and isinstance(serial[2], Failed)
 
 
 def test_servo_noise_is_seeded_per_run():

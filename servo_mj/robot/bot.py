@@ -108,6 +108,7 @@ class ServoBot:
         """Gait cycles run since construction (for error messages)."""
         self._nominal = GaitLibrary.home()  # last commanded target without noise, rad
         self._command = GaitLibrary.home()  # last command sent (with noise), rad
+        self._warnings = data.warning.number  # live view of MuJoCo's warning counters
 
     # --- accessors -------------------------------------------------------------------------
     def pose(self) -> Pose:
@@ -160,9 +161,15 @@ class ServoBot:
 
     # --- gaits -----------------------------------------------------------------------------
     def run_gait(
-        self, gait: int, *, on_frame: Callable[[mujoco.MjData], None] | None = None
+        self,
+        gait: int,
+        *,
+        on_frame: Callable[[mujoco.MjData], None] | None = None,
+        on_step: Callable[[mujoco.MjData], None] | None = None,
     ) -> CycleResult:
-        """Run one cycle of ``gait``; ``on_frame(data)`` is called after every 100 ms frame.
+        """Run one cycle of ``gait``; ``on_frame(data)`` is called after every 100 ms frame,
+        ``on_step(data)`` after every physics step (then the frame's steps are taken one call
+        at a time, with the same result bit for bit).
 
         Raises ``PhysicsError`` (naming gait, cycle and time) on NaN, a MuJoCo warning,
         runaway speed or a flipped torso.
@@ -180,7 +187,12 @@ class ServoBot:
                 command = np.where(target != self._nominal, target + jitter, self._command)
             self._nominal, self._command = target, command
             d.ctrl[self.actuators] = command
-            mujoco.mj_step(m, d, self.substeps)
+            if on_step is None:
+                mujoco.mj_step(m, d, self.substeps)
+            else:
+                for _ in range(self.substeps):
+                    mujoco.mj_step(m, d)
+                    on_step(d)
             self._check(f"gait {g}", self.cycles, d.time)
             if on_frame is not None:
                 on_frame(d)
@@ -190,20 +202,20 @@ class ServoBot:
 
     # --- faults ----------------------------------------------------------------------------
     def _clear_warnings(self) -> None:
-        for w in self.data.warning:
-            w.number = 0
+        self._warnings[:] = 0
 
     def _check(self, what: str, cycle: int, t: float) -> None:
+        # Runs after every frame: array tests only; the message is built when one fails.
         d = self.data
-        where = f"{what}, cycle {cycle}, t = {t:.3f} s"
-        warned = [mujoco.mjtWarning(i).name for i, w in enumerate(d.warning) if w.number > 0]
-        if warned:
-            raise PhysicsError(f"MuJoCo warning {', '.join(warned)} during {where}")
-        if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
-            raise PhysicsError(f"non-finite state (NaN/inf) during {where}")
-        if float(np.max(np.abs(d.qvel))) > self.physics.max_speed_m_s:
-            raise PhysicsError(
-                f"simulation diverged (speed > {self.physics.max_speed_m_s}) during {where}"
-            )
-        if self.upright() < self.physics.upright_min:
-            raise PhysicsError(f"torso flipped (up-axis z = {self.upright():.2f}) during {where}")
+        if self._warnings.any():
+            warned = [mujoco.mjtWarning(int(i)).name for i in np.flatnonzero(self._warnings)]
+            problem = f"MuJoCo warning {', '.join(warned)}"
+        elif not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+            problem = "non-finite state (NaN/inf)"
+        elif float(np.abs(d.qvel).max()) > self.physics.max_speed_m_s:
+            problem = f"simulation diverged (speed > {self.physics.max_speed_m_s})"
+        elif self.upright() < self.physics.upright_min:
+            problem = f"torso flipped (up-axis z = {self.upright():.2f})"
+        else:
+            return
+        raise PhysicsError(f"{problem} during {what}, cycle {cycle}, t = {t:.3f} s")

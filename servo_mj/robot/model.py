@@ -3,28 +3,60 @@
 from __future__ import annotations
 
 import hashlib
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from servo_mj.robot import constants as C
 
+ModelFile = str | Path | None
+"""Which robot: None = the shipped ServoBot (``models/servobot``), else the path of a complete
+MJCF scene such as a ``servobot variant`` file (robot + floor + options in one file)."""
 
-def load_robot(scene: bool = True) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """Compile ``scene.xml`` (robot on a floor) or the bare ``servobot.xml``; data at ``home``."""
-    path = C.SCENE_XML if scene else C.ROBOT_XML
-    model = mujoco.MjModel.from_xml_path(str(path))
-    data = mujoco.MjData(model)
-    key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")
+
+def scene_path(model: ModelFile = None) -> Path:
+    """The calibration scene of ``model``: the shipped ``scene.xml`` or the given file, which
+    must exist (``FileNotFoundError`` naming it otherwise)."""
+    if model is None:
+        return C.SCENE_XML
+    path = Path(model)
+    if not path.is_file():
+        raise FileNotFoundError(f"robot model {path}: no such file")
+    return path
+
+
+def model_label(model: ModelFile = None) -> str:
+    """How messages and files name a model: ``shipped ServoBot (models/servobot)`` or the path."""
+    return "shipped ServoBot (models/servobot)" if model is None else str(model)
+
+
+def load_robot(scene: bool = True, model: ModelFile = None) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """Compile the calibration scene (robot on a floor) or, for the shipped model only, the bare
+    ``servobot.xml`` (``scene=False``); data at the ``home`` keyframe. ``model``: see
+    ``ModelFile``."""
+    if not scene and model is not None:
+        raise ValueError("scene=False loads the shipped robot alone; a model file is a scene")
+    path = scene_path(model) if scene else C.ROBOT_XML
+    try:
+        compiled = mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as exc:
+        raise ValueError(f"robot model {path}: MuJoCo cannot compile it ({exc})") from exc
+    data = mujoco.MjData(compiled)
+    key = mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_KEY, "home")
     if key >= 0:
-        mujoco.mj_resetDataKeyframe(model, data, key)
-    mujoco.mj_forward(model, data)
-    return model, data
+        mujoco.mj_resetDataKeyframe(compiled, data, key)
+    mujoco.mj_forward(compiled, data)
+    return compiled, data
 
 
-def model_sha256() -> str:
-    """SHA-256 of the robot and scene MJCF files (provenance of a calibration)."""
+def model_sha256(model: ModelFile = None) -> str:
+    """SHA-256 of the robot (provenance of a calibration): of the shipped robot and scene MJCF
+    files (names and bytes), or of a model file's bytes (its name does not count)."""
     h = hashlib.sha256()
+    if model is not None:
+        h.update(scene_path(model).read_bytes())
+        return h.hexdigest()
     for path in (C.ROBOT_XML, C.SCENE_XML):
         h.update(path.name.encode())
         h.update(path.read_bytes())

@@ -85,7 +85,8 @@ class RobotSpec:
     """Where the robot model is and how to find its torso and forward axis."""
 
     xml: Path
-    """Robot MJCF file (the robot alone, with its own free joint)."""
+    """Robot MJCF file with its own free joint: the robot alone, or a scene whose worldbody
+    holds the robot's torso beside floor and lights (only the torso is attached)."""
     torso_body: str
     """Name of the torso body in the robot MJCF."""
     free_joint: str | None
@@ -98,16 +99,18 @@ class RobotSpec:
     arena as they did when the gait table was measured. None = MuJoCo defaults."""
 
 
-def default_robot() -> RobotSpec:
-    """The ServoBot of ``servo_mj.robot.constants``."""
+def default_robot(model: str | Path | None = None) -> RobotSpec:
+    """The ServoBot of ``servo_mj.robot.constants``; ``model``: a complete scene file of a
+    ServoBot (a ``servobot variant``), which is both the robot and the calibration scene."""
     from servo_mj.robot import constants as c
+    from servo_mj.robot.model import scene_path
 
     # constants: "Robot body frame: +x forward, +y left, +z up".
     return RobotSpec(
-        xml=Path(c.ROBOT_XML),
+        xml=Path(c.ROBOT_XML) if model is None else scene_path(model),
         torso_body=c.TORSO,
         free_joint=c.FREE_JOINT,
-        scene_xml=Path(c.SCENE_XML),
+        scene_xml=scene_path(model),
     )
 
 
@@ -177,10 +180,14 @@ def add_arena(root: mjcf.RootElement, world: WorldSettings, arena: ArenaSettings
 
 
 def _detach_free_joint(robot: mjcf.RootElement, spec: RobotSpec) -> mjcf.Element:
-    """Remove the robot's free joint; return the body that carried it (the torso)."""
+    """Remove the robot's free joint and anything beside the torso in the file's worldbody (a
+    scene file's floor and lights); return the torso."""
     torso = robot.find("body", spec.torso_body)
     if torso is None:
         raise ValueError(f"{spec.xml}: no body named {spec.torso_body!r}")
+    for element in list(robot.worldbody.all_children()):
+        if element is not torso:
+            element.remove()
     joints = [j for j in robot.find_all("joint") if j.tag == "freejoint" or j.type == "free"]
     if spec.free_joint is not None:
         joints = [j for j in joints if j.name == spec.free_joint] or joints
@@ -248,6 +255,7 @@ def compile_arena(
     model = mujoco.MjModel.from_xml_string(xml, root.get_assets())
     if spec.scene_xml is not None:
         match_scene(model, mujoco.MjModel.from_xml_path(str(spec.scene_xml)))
+    _sensors.sensors_on_demand(model)
     data = mujoco.MjData(model)
     prefix = _robot_prefix(root)
     mujoco.mj_forward(model, data)

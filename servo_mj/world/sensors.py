@@ -11,6 +11,12 @@ the rest of the robot.
 Light sensors follow the SPEC's geometric rule (``evolve.geometry.light_sensors``) on the
 robot's physical pose: the pose, not the table, decides whether the robot is lit.
 
+Cost: the 20 rays are read only when the controller asks (a branch testing an object sensor),
+so the arena's model has MuJoCo's sensor stage switched off while it steps
+(``sensors_on_demand``) and ``ray_ranges_m`` evaluates the rangefinders at the current state.
+Sensors never act on the dynamics, so this changes no trajectory; computing 20 rays in each of
+the 800 physics steps of a gait cycle cost about a quarter of the cycle (docs/validation.md).
+
 Frames: arena units (cm) and degrees for poses; metres in MuJoCo. Heading 0 = north (+y),
 clockwise positive.
 """
@@ -25,6 +31,8 @@ import numpy as np
 
 from evolve.settings import WorldSettings
 from servo_mj.robot.constants import CM_PER_M
+
+_SENSOR_STAGE = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
 SIDES = ("left", "right")
 """Object-sensor sides, in the order the World protocol returns them."""
@@ -122,16 +130,29 @@ class ObjectSensorIndex:
         return cls(idx["left"], idx["right"])
 
 
+def sensors_on_demand(model: mujoco.MjModel) -> None:
+    """Switch off the sensor stage of ``mj_step`` for ``model``: ``ray_ranges_m`` still reads
+    the rangefinders, on demand. Other code reading ``data.sensordata`` of this model after a
+    step would read stale values."""
+    model.opt.disableflags |= _SENSOR_STAGE
+
+
 def ray_ranges_m(
     model: mujoco.MjModel, data: mujoco.MjData, index: ObjectSensorIndex
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rangefinder readings (m, −1 = no hit) of the left and right fans at the current state.
 
     Recomputes positions and position-stage sensors first, so the readings belong to the
-    current ``qpos`` rather than to the start of the last physics step.
+    current ``qpos`` rather than to the start of the last physics step; the sensor stage runs
+    here even when ``sensors_on_demand`` switched it off for stepping.
     """
-    mujoco.mj_fwdPosition(model, data)
-    mujoco.mj_sensorPos(model, data)
+    flags = model.opt.disableflags
+    model.opt.disableflags = flags & ~_SENSOR_STAGE
+    try:
+        mujoco.mj_fwdPosition(model, data)
+        mujoco.mj_sensorPos(model, data)
+    finally:
+        model.opt.disableflags = flags
     return data.sensordata[index.left].copy(), data.sensordata[index.right].copy()
 
 
@@ -163,4 +184,5 @@ __all__ = [
     "ray_direction",
     "ray_ranges_m",
     "sensor_name",
+    "sensors_on_demand",
 ]

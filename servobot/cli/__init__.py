@@ -15,6 +15,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "trace": ("servobot.cli.trace", "print (and record) a controller's run step by step"),
     "validate": ("servobot.cli.validate", "run a chromosome in the table simulation and physics"),
     "reproduce": ("servobot.cli.reproduce", "the end-to-end reproduction into one run folder"),
+    "variant": ("servobot.cli.variant", "write a ServoBot variant (mass, legs, servos, friction)"),
+    "compare": ("servobot.cli.compare", "compare gait tables side by side (PNG + CSV)"),
 }
 
 

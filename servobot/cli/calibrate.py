@@ -3,7 +3,8 @@
 Parses the options and prints; ``calibration.calibrate.calibrate`` does the work and writes
 ``DIR/gait_table.json``, ``DIR/figure4.png`` and, with ``--fit``, the fitted gait parameters to
 ``DIR/gait_params.json`` and to ``--params-out`` (default: the shipped
-``servo_mj/robot/data/gait_params.json``, where the gait library loads them from).
+``servo_mj/robot/data/gait_params.json``, where the gait library loads them from; with
+``--model``, only ``DIR``: a variant's fit never replaces the shipped parameters unasked).
 """
 
 from __future__ import annotations
@@ -16,9 +17,11 @@ from pathlib import Path
 from calibration.calibrate import calibrate
 from calibration.fit import FitSettings
 from calibration.measure import DEFAULTS, CalibrationSettings
-from calibration.report import format_table
+from calibration.report import format_energy, format_table
+from infra.executors import BatchError
 from servo_mj.robot.bot import PhysicsError
 from servo_mj.robot.gaits import PARAMS_JSON, GaitLibrary
+from servobot.cli.options import add_executor_option, executor_from_args
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -67,16 +70,25 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--params-out",
         type=Path,
-        default=PARAMS_JSON,
-        help="where --fit saves the fitted parameters (default: the shipped file)",
+        default=None,
+        help="where --fit also saves the fitted parameters (default: the shipped file; with "
+        "--model: none, only DIR/gait_params.json)",
     )
     p.add_argument("--rrd", type=Path, default=None, help="record the walks for rerun (.rrd)")
+    p.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)",
+    )
     p.add_argument(
         "--workers",
         type=int,
         default=min(2, os.cpu_count() or 1),
-        help="processes for measuring/fitting gaits in parallel",
+        help="processes (or Ray CPUs) for measuring/fitting gaits in parallel",
     )
+    add_executor_option(p, None, "process, serial with --workers 1")
     return p
 
 
@@ -106,8 +118,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"servobot calibrate: {exc}", file=sys.stderr)
         return 2
     settings = CalibrationSettings(
-        cycles=args.cycles, settle_cycles=args.settle_cycles, seed=args.seed, noise_rad=args.noise
-    )
+        cycles=args.cycles, settle_cycles=args.settle_cycles, seed=args.seed, noise_rad=args.noise,
+        model=None if args.model is None else str(args.model),
+    )  # fmt: skip
     fit = None
     if args.fit:
         fit = FitSettings(
@@ -119,11 +132,12 @@ def main(argv: list[str] | None = None) -> int:
         )
         print(f"fitting 15 gaits ({args.workers} workers, <= {fit.max_evals} evaluations each)")
     command = "servobot calibrate " + " ".join(sys.argv[1:] if argv is None else argv)
+    params_out = args.params_out or (PARAMS_JSON if args.model is None else None)
     kwargs = dict(
         library=library,
         fit=fit,
-        params_out=args.params_out,
-        workers=args.workers,
+        params_out=params_out,
+        executor=executor_from_args(args, "servobot calibrate"),
         log=lambda s: print("  " + s, flush=True),
         command=command,
     )
@@ -135,12 +149,17 @@ def main(argv: list[str] | None = None) -> int:
 
             with Recording(args.rrd, app_id="servobot-calibration") as rec:
                 res = calibrate(args.out, settings, **calibration_recorder(rec, settings), **kwargs)
-    except PhysicsError as exc:
+    except (PhysicsError, BatchError) as exc:
         print(f"servobot calibrate: physics failed: {exc}", file=sys.stderr)
         return 1
+    except (OSError, ValueError) as exc:  # a missing or broken --model file
+        print(f"servobot calibrate: {exc}", file=sys.stderr)
+        return 2
     if res.params_path is not None:
-        print(f"fitted gait parameters written to {args.params_out} and {res.params_path}")
+        also = f"{params_out} and " if params_out is not None else ""
+        print(f"fitted gait parameters written to {also}{res.params_path}")
     print(format_table(res.values, res.std))
+    print(format_energy(res.energy))
     print(f"wrote {res.table_path} and {res.figure_path} ({res.wall_s:.1f} s wall)")
     if args.rrd is not None:
         print(f"recording saved to {args.rrd}")

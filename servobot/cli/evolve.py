@@ -3,7 +3,9 @@
 A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
 
     servobot evolve navigation [--populations 5 --generations 1024 --population-size 256
-                                --seed 0 --table paper|PATH --out runs/evolve --resume]
+                                --seed 0 --table paper|PATH --power paper|table
+                                --out runs/evolve --resume
+                                --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
     servobot evolve colony     [... as coverage ... --robots 3]
 
@@ -25,7 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from evolve.settings import GASettings, navigation_ga_settings
+from evolve.settings import GASettings, WorldSettings, navigation_ga_settings
+from infra.executors import Executor
+from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.progress import GenerationBars
 
 DEFAULT_OUT = Path("runs/evolve")
@@ -66,6 +70,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--table", default="paper", help="gait table: 'paper' (Figure 4) or a calibration JSON"
     )
     p.add_argument(
+        "--power",
+        choices=("paper", "table"),
+        default="paper",
+        help="power model: 'paper' (0.0209 V per cycle, gait 7 free; default) or 'table' "
+        "(each gait costs the dV measured in --table)",
+    )
+    p.add_argument(
         "--out", type=Path, default=DEFAULT_OUT, help=f"run folder (default {DEFAULT_OUT})"
     )
     p.add_argument(
@@ -80,8 +91,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--robots", type=int, default=None, help="colony only: robots sharing the station (3)"
     )
+    add_executor_option(
+        p, "serial", "serial (one population after another: the kernel uses every core)"
+    )
+    p.add_argument(
+        "--workers", type=int, default=None, help="processes or Ray CPUs (default: one per core)"
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
+
+
+def executor(args: argparse.Namespace) -> Executor | None:
+    """Where the populations evolve: None = here (live progress), else an executor."""
+    if args.workers is not None and args.workers < 1:
+        raise CliError(f"--workers must be ≥ 1, got {args.workers}")
+    return None if args.executor == "serial" else executor_from_args(args, "servobot evolve")
 
 
 def ga_settings(args: argparse.Namespace) -> GASettings:
@@ -184,12 +208,13 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from evolve import stages
     from evolve.codec import ChromosomeError
-    from evolve.table import GaitTableError, load_table
+    from evolve.table import GaitTableError, load_table, with_power_model
 
     bars = GenerationBars(enabled=not args.no_progress)
     try:
         ga = ga_settings(args)
         table = load_table(args.table)
+        world = with_power_model(WorldSettings(), args.power, table)
         if args.robots is not None and args.stage != "colony":
             raise CliError("--robots is an option of the colony stage")
         colony = _colony(args.robots)
@@ -197,20 +222,24 @@ def main(argv: list[str] | None = None) -> int:
             if args.navigation is not None:
                 raise CliError("--navigation is an option of the coverage and colony stages")
             summary = stages.run_navigation(
-                args.out, table=table, ga=ga, resume=args.resume, on_generation=bars
-            )
+                args.out, table=table, ga=ga, world=world, resume=args.resume,
+                on_generation=bars, executor=executor(args),
+            )  # fmt: skip
             _print_navigation(summary, args.out)
         else:
             nav_path = args.navigation or args.out / "navigation" / "best.txt"
             navigation = load_navigation(nav_path)
-            run = dict(table=table, ga=ga, resume=args.resume, on_generation=bars)
+            run = dict(
+                navigation=navigation, table=table, ga=ga, world=world, resume=args.resume,
+                on_generation=bars, executor=executor(args),
+            )  # fmt: skip
             if args.stage == "coverage":
-                summary = stages.run_coverage(args.out, navigation=navigation, **run)
+                summary = stages.run_coverage(args.out, **run)
                 _print_coverage(summary, args.out)
             else:
                 from evolve.colony_stage import run_colony_stage
 
-                summary = run_colony_stage(args.out, navigation=navigation, colony=colony, **run)
+                summary = run_colony_stage(args.out, colony=colony, **run)
                 _print_colony(summary, args.out)
     except (CliError, stages.StageError, GaitTableError, ChromosomeError) as exc:
         print(f"servobot evolve: error: {exc}", file=sys.stderr)

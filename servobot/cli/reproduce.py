@@ -13,6 +13,7 @@ from tqdm import tqdm
 
 from evolve.population import StageError
 from evolve.table import GaitTableError
+from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.progress import GenerationBars
 from servobot.reproduce import ReproduceError, reproduce, resolve_settings
 from servobot.reproduce_report import format_seconds
@@ -33,11 +34,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--workers", type=int, default=None, help="processes for physics (default: all cores)"
     )
+    add_executor_option(p, None, "process, serial with --workers 1 (validation runs)")
     p.add_argument(
         "--validate-starts",
         type=int,
         default=None,
         help="validation starts per finalist (default 20; --quick 3)",
+    )
+    p.add_argument(
+        "--model",
+        default=None,
+        metavar="FILE",
+        help="robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
@@ -50,8 +58,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         settings = resolve_settings(
-            quick=args.quick, seed=args.seed, validate_starts=args.validate_starts
-        )
+            quick=args.quick, seed=args.seed, validate_starts=args.validate_starts,
+            model=args.model,
+        )  # fmt: skip
     except ReproduceError as exc:
         print(f"servobot reproduce: {exc}", file=sys.stderr)
         return 2
@@ -64,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
         res = reproduce(
             args.out,
             settings=settings,
-            workers=args.workers,
+            executor=executor_from_args(args, "servobot reproduce"),
             on_generation=bars,
             on_run=lambda _rec: runs.update(1),
         )

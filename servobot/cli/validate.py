@@ -10,6 +10,7 @@ errors are in the report), 2 = bad input (message names the problem).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,8 @@ from evolve.codec import ChromosomeError, read_chromosome
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
 from servo_mj.robot.settings import PhysicsSettings
+from servo_mj.world.arena import ArenaSettings
+from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.validate import (
     ValidationError,
     check_chromosome,
@@ -85,8 +88,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         type=int,
         default=None,
         metavar="K",
-        help="processes (default: one per core; 1 = serial)",
+        help="processes or Ray CPUs (default: one per core)",
     )
+    add_executor_option(p, None, "process, serial with --workers 1")
     p.add_argument(
         "--steps", type=int, default=None, metavar="N", help="steps per run (default 600, SPEC §5)"
     )
@@ -96,6 +100,22 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         default=None,
         metavar="RAD",
         help="servo-target noise std in physics, rad (default: PhysicsSettings, 0 = off)",
+    )
+    p.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="robot model file in physics, e.g. from 'servobot variant' (default: shipped); "
+        "a --table PATH must have been calibrated on it",
+    )
+    p.add_argument(
+        "--station-height",
+        type=float,
+        default=None,
+        metavar="M",
+        help="height of the physics station block, m (default ArenaSettings: 0.10, below the "
+        "rangefinder rays; 0.30 lets the object sensors see the block)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p.parse_args(argv)
@@ -124,6 +144,8 @@ def prepare(args: argparse.Namespace, world: WorldSettings) -> tuple[np.ndarray,
         raise InputError(f"--noise must be a finite number >= 0, got {args.noise}")
     if args.steps is not None and args.steps < 0:
         raise InputError(f"--steps must be at least 0, got {args.steps}")
+    if args.station_height is not None and not (0.0 < args.station_height < np.inf):
+        raise InputError(f"--station-height must be a height > 0 m, got {args.station_height}")
     return bits, starts
 
 
@@ -132,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     world = WorldSettings()
     try:
         bits, starts = prepare(args, world)
-        table, warning = load_checked_table(args.table)
+        table, warning = load_checked_table(args.table, args.model)
     except (InputError, ValidationError) as exc:
         print(f"servobot validate: {exc}", file=sys.stderr)
         return 2
@@ -140,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
         print(warning, file=sys.stderr)
 
     physics = None if args.noise is None else PhysicsSettings(servo_noise_rad=args.noise)
+    arena = ArenaSettings()
+    if args.station_height is not None:
+        arena = dataclasses.replace(arena, station_height_m=args.station_height)
     bar = tqdm(total=len(starts), desc="validate", unit="start", disable=args.no_progress)
 
     def on_run(rec: dict[str, Any]) -> None:
@@ -154,11 +179,13 @@ def main(argv: list[str] | None = None) -> int:
             table=table,
             world=world,
             physics=physics,
+            arena=arena,
             out_dir=args.out,
             rrd=args.rrd,
-            workers=args.workers,
+            executor=executor_from_args(args, "servobot validate"),
             max_steps=args.steps,
             seed=args.seed,
+            model=args.model,
             on_run=on_run,
             meta={
                 "chromosome_file": str(args.chromosome),

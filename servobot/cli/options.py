@@ -1,0 +1,58 @@
+"""The ``--executor`` option of the subcommands that run batches (``infra.executors``)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import sys
+
+from infra.executors import (
+    EXECUTOR_SPECS,
+    Executor,
+    ExecutorError,
+    RayExecutor,
+    check_spec,
+    make_executor,
+)
+
+METAVAR = "|".join(EXECUTOR_SPECS)
+
+
+def executor_spec(text: str) -> str:
+    """argparse type of ``--executor``: a valid spec, with Ray installed when it names Ray."""
+    try:
+        spec = check_spec(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+    if spec.startswith("ray") and importlib.util.find_spec("ray") is None:
+        raise argparse.ArgumentTypeError(
+            f'{spec}: Ray is not installed; pip install -e ".[ray]" (or pip install ray)'
+        )
+    return spec
+
+
+def add_executor_option(p: argparse.ArgumentParser, default: str | None, default_help: str) -> None:
+    """Add ``--executor`` (default ``default``, described by ``default_help``)."""
+    p.add_argument(
+        "--executor",
+        type=executor_spec,
+        default=default,
+        metavar=METAVAR,
+        help="where the independent runs go: serial (here), process (a pool of --workers), "
+        "ray (a local Ray instance of --workers CPUs) or ray:ADDRESS (a running Ray cluster, "
+        f"see docs/executors.md); default: {default_help}",
+    )
+
+
+def executor_from_args(args: argparse.Namespace, prog: str) -> Executor:
+    """The executor of ``--executor`` and ``--workers`` (already checked); a Ray one joins
+    or starts Ray now, so that a cluster that cannot be reached stops the command before any
+    work (message, exit status 2)."""
+    ex = make_executor(args.executor, args.workers)
+    if isinstance(ex, RayExecutor):
+        try:
+            ex.connect()
+        except ExecutorError as exc:
+            print(f"{prog}: {exc}", file=sys.stderr)
+            raise SystemExit(2) from exc
+    return ex

@@ -1,0 +1,81 @@
+"""``servobot variant``: write a ServoBot variant as a complete MJCF file (or show one's).
+
+::
+
+    servobot variant [--torso-mass KG] [--leg-length M] [--servo-torque NM] [--servo-kp K]
+                     [--foot-friction MU] [--floor-friction MU] --out FILE.xml
+    servobot variant --show FILE.xml
+
+Parses and prints; ``servo_mj.robot.variant`` builds the file from the shipped model with
+``dm_control.mjcf``, checks that the robot stands and walks every gait, and writes it
+atomically. Every parameter's unit, default and meaning: ``models/servobot/README.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from servo_mj.robot.variant import VariantError, VariantParams, read_variant, write_variant
+
+DEFAULTS = VariantParams()
+OPTIONS = (
+    ("--torso-mass", "torso_mass_kg", "KG", "torso mass incl. capacitors, kg"),
+    ("--leg-length", "leg_length_m", "M", "foot reach from the thrust axis, m (legs scale)"),
+    ("--servo-torque", "servo_torque_nm", "NM", "servo torque limit (stall torque), N·m"),
+    ("--servo-kp", "servo_kp", "K", "position-servo stiffness kp, N·m/rad"),
+    ("--foot-friction", "foot_friction", "MU", "feet sliding friction"),
+    ("--floor-friction", "floor_friction", "MU", "floor sliding friction"),
+)
+"""(option, VariantParams field, metavar, help) of each parameter."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="servobot variant",
+        description="Write a complete MJCF ServoBot variant (robot, floor, options) built from "
+        "the shipped model; use it with calibrate/validate/reproduce --model FILE.",
+    )
+    for flag, field, metavar, help_ in OPTIONS:
+        default = getattr(DEFAULTS, field)
+        p.add_argument(flag, dest=field, type=float, default=default, metavar=metavar,
+                       help=f"{help_} (default {default:g})")  # fmt: skip
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--out", type=Path, help="variant file to write (.xml)")
+    what.add_argument("--show", type=Path, metavar="FILE", help="print the parameters of FILE")
+    return p
+
+
+def _print_params(params: VariantParams) -> None:
+    for flag, field, _, help_ in OPTIONS:
+        mark = "  (changed)" if field in params.changed() else ""
+        print(f"  {flag[2:]:<15} {getattr(params, field):<10g} {help_}{mark}")
+    if params.foot_friction != params.floor_friction:
+        print(f"  foot-floor friction used by MuJoCo: {params.effective_friction:g} (the larger)")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.show is not None:
+            params = read_variant(args.show)
+            if params is None:
+                print(f"{args.show}: records no variant parameters (not a servobot variant file)")
+                return 0
+            print(f"{args.show}: ServoBot variant")
+            _print_params(params)
+            return 0
+        params = VariantParams(**{field: getattr(args, field) for _, field, _, _ in OPTIONS})
+        path = write_variant(params, args.out)
+    except (VariantError, OSError) as exc:
+        print(f"servobot variant: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {path}: it stands and walks every gait")
+    _print_params(params)
+    print(f"next: servobot calibrate --model {path} --out runs/calibration_{path.stem}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
