@@ -14,7 +14,7 @@ from evolve import evaluate, evaluate_colony
 from evolve.codec import parse_chromosome
 from evolve.ga import next_generation, random_sections
 from evolve.interpreter import END_BRANCH_LIMIT, END_KILL_ZONE, END_POWER_EMPTY, run_colony
-from evolve.settings import ColonySettings, GASettings, WorldSettings
+from evolve.settings import ColonySettings, GASettings, WorldSettings, with_table_power
 from evolve.starts import colony_starts
 from evolve.table import PAPER_TABLE
 from evolve.world import TableColony
@@ -96,8 +96,9 @@ def test_other_colony_sizes_settings_and_navigation_mode_match():
     two = ColonySettings(robots=2, disc_radius=25.0, start_separation=55.0, charge_steps=3,
                          colony_step_limit=250)  # fmt: skip
     table = PAPER_TABLE * rng.uniform(0.8, 1.2, size=PAPER_TABLE.shape)
+    per_gait = with_table_power(WORLD, rng.uniform(0.005, 0.04, 16))  # issue 10's power model
     assert_colony_kernel_equals_interpreter(
-        genomes, colony_starts(rng, 2, WORLD, two), table=table, colony=two
+        genomes, colony_starts(rng, 2, WORLD, two), table=table, world=per_gait, colony=two
     )
 
 

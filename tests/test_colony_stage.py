@@ -20,6 +20,7 @@ from evolve.population import StageError, stage_seeds
 from evolve.settings import ColonySettings, GASettings, WorldSettings
 from evolve.starts import colony_starts
 from evolve.table import load_table
+from infra.executors import ProcessExecutor
 
 WORLD = WorldSettings()
 TABLE = load_table("paper")
@@ -89,6 +90,13 @@ def test_resume_after_interruption_equals_uninterrupted_run(tiny_run, tmp_path):
     run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, resume=True,
                      on_generation=seen.append)  # fmt: skip
     assert [(i["population"], i["generation"]) for i in seen] == [(1, g) for g in (16, 17, 18)]
+    assert _files(ref / "colony") == _files(tmp_path / "colony")
+
+
+def test_populations_in_a_process_pool_give_the_same_files(tiny_run, tmp_path):
+    """The colony's Stage (its bound evaluator and starts) travels to worker processes."""
+    ref, _ = tiny_run
+    run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, executor=ProcessExecutor(2))
     assert _files(ref / "colony") == _files(tmp_path / "colony")
 
 
