@@ -1,13 +1,13 @@
 """The cyclic genetic algorithm on a fast table simulation of the ServoBot colony.
 
 Pure numerics: nothing here imports MuJoCo. See ``../shared/SPEC.md`` for the contract.
-``evolve.evaluate`` (the numba kernel's entry point) is imported on first use, so that
-importing settings, tables or the codec does not load numba.
+``evolve.evaluate`` and ``evolve.evaluate_colony`` (the numba kernels' entry points) are
+imported on first use, so that importing settings, tables or the codec does not load numba.
 """
 
 from typing import Any
 
-__all__ = ["Evaluation", "evaluate"]
+__all__ = ["ColonyEvaluation", "Evaluation", "evaluate", "evaluate_colony"]
 
 
 def __getattr__(name: str) -> Any:

@@ -1,4 +1,5 @@
-"""Throughput benchmark of ``evolve.evaluate`` in robot steps per second.
+"""Throughput benchmark of ``evolve.evaluate`` and ``evolve.evaluate_colony`` in robot steps
+per second.
 
 Populations:
 - random: uniformly random 16-gene chromosomes from the coverage start region (most die fast);
@@ -6,19 +7,28 @@ Populations:
   testing object and light sensors on the way (never the low-power test), started with
   enough power that every run lasts the full 600 steps — the load of an evolved population.
 
-Run: ``python -m evolve.bench [--threads 1 2] [--population 256] [--starts 10] [--repeats 5]``.
+Each population runs alone (one robot per run) and as colonies of ``--robots`` robots from
+colony starts in the same regions (``evolve.starts.colony_starts``); the colony lines give
+robot steps per second and their ratio to the lone robot's, measured in alternation.
+
+Run: ``python -m evolve.bench [--threads 1 2] [--population 256] [--starts 10] [--repeats 5]
+[--robots 3] [--clock wall|cpu]``; ``--clock cpu`` divides by the process's CPU time, which a
+shared machine's other load disturbs less than wall time (it hides poor thread scaling).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import numba
 import numpy as np
 
-from evolve.evaluation import evaluate
+from evolve.evaluation import evaluate, evaluate_colony
 from evolve.ga import random_sections
+from evolve.settings import ColonySettings, WorldSettings
+from evolve.starts import colony_starts, coverage_starts
 from evolve.table import PAPER_TABLE
 
 LONG_START_POWER_V = 20.0
@@ -27,6 +37,8 @@ CIRCLE_GAITS = (9, 10)
 """Gaits of the circling chromosomes (right turns of radius about 94 and 44 units)."""
 NON_POWER_TESTS = (1, 2, 3, 5, 6, 7)
 """Sensor tests the circling chromosomes use (not 0 = always, not 4 = low power)."""
+CENTRE_REGION = (220.0, 280.0)
+"""x and y range of the long population's start poses, units."""
 
 
 def _gait_instr(gait: int) -> list[int]:
@@ -52,17 +64,44 @@ def circling_population(rng: np.random.Generator, n: int) -> np.ndarray:
     return out
 
 
-def _measure(genomes, starts, *, start_power: float, repeats: int) -> tuple[float, float]:
-    """Best-of-``repeats`` (steps/s, mean steps per run)."""
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+"""``--clock``: wall time, or the process's CPU time (all threads; steadier under load)."""
+
+
+def _measure(
+    genomes, starts, *, start_power: float, repeats: int, colony=None, clock=time.perf_counter
+) -> float:
+    """Best-of-``repeats`` robot steps per second, alone (``colony`` None) or as colonies."""
     best = 0.0
-    steps = 0.0
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        ev = evaluate(genomes, starts, table=PAPER_TABLE, mode="coverage", start_power=start_power)
-        dt = time.perf_counter() - t0
+        t0 = clock()
+        if colony is None:
+            ev = evaluate(
+                genomes, starts, table=PAPER_TABLE, mode="coverage", start_power=start_power
+            )
+        else:
+            ev = evaluate_colony(
+                genomes, starts, table=PAPER_TABLE, mode="coverage", start_power=start_power,
+                colony=colony,
+            )  # fmt: skip
+        dt = clock() - t0
         best = max(best, float(ev.steps.sum()) / dt)
-        steps = float(ev.steps.mean())
-    return best, steps
+    return best
+
+
+def _loads(rng: np.random.Generator, n: int, s: int, colony: ColonySettings) -> list[tuple]:
+    """(name, genomes, lone starts (S, 3), colony starts (S, R, 3), start power) per load."""
+    world = WorldSettings()
+    centre = dataclasses.replace(
+        world, coverage_start_x=CENTRE_REGION, coverage_start_y=CENTRE_REGION
+    )
+    rand = rng.integers(0, 2, size=(n, 16, 30), dtype=np.uint8)
+    circ = circling_population(rng, n)
+    return [
+        ("random", rand, coverage_starts(rng, s, world), colony_starts(rng, s, world, colony), 4.0),
+        ("long", circ, coverage_starts(rng, s, centre), colony_starts(rng, s, centre, colony),
+         LONG_START_POWER_V),
+    ]  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,31 +110,34 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--population", type=int, default=256)
     ap.add_argument("--starts", type=int, default=10)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--robots", type=int, default=ColonySettings().robots)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--clock", choices=tuple(CLOCKS), default="wall")
     args = ap.parse_args(argv)
+    clock = CLOCKS[args.clock]
     rng = np.random.default_rng(args.seed)
-    n, s = args.population, args.starts
-    rand = rng.integers(0, 2, size=(n, 16, 30), dtype=np.uint8)
-    rand_starts = np.column_stack(
-        [rng.uniform(350, 450, s), rng.uniform(175, 325, s), rng.uniform(0, 360, s)]
-    )
-    circ = circling_population(rng, n)
-    circ_starts = np.column_stack(
-        [rng.uniform(220, 280, s), rng.uniform(220, 280, s), rng.uniform(0, 360, s)]
-    )
-    evaluate(rand[:2], rand_starts[:1], table=PAPER_TABLE, mode="coverage")  # compile / load
+    colony = ColonySettings(robots=args.robots)
+    loads = _loads(rng, args.population, args.starts, colony)
+    _, g, lone, col, _ = loads[0]
+    evaluate(g[:2], lone[:1], table=PAPER_TABLE, mode="coverage")  # compile / load
+    evaluate_colony(g[:2], col[:1], table=PAPER_TABLE, mode="coverage", colony=colony)
     print(f"numba {numba.__version__}, threading layer after first call: {numba.threading_layer()}")
-    print(f"population {n} x {s} starts, best of {args.repeats}")
+    print(
+        f"population {args.population} x {args.starts} starts, colonies of {args.robots}, best "
+        f"of {args.repeats} (lone and colony calls alternate), {args.clock} clock"
+    )
     for threads in args.threads:
         numba.set_num_threads(threads)
-        r_rate, r_steps = _measure(rand, rand_starts, start_power=4.0, repeats=args.repeats)
-        c_rate, c_steps = _measure(
-            circ, circ_starts, start_power=LONG_START_POWER_V, repeats=args.repeats
-        )
-        print(
-            f"threads {threads}: random {r_rate / 1e6:6.2f} M steps/s ({r_steps:5.1f} steps/run)"
-            f" | long {c_rate / 1e6:6.2f} M steps/s ({c_steps:5.1f} steps/run)"
-        )
+        for name, genomes, lone, col, power in loads:
+            a = b = 0.0
+            for _ in range(args.repeats):  # alternate, so that both see the same load
+                a = max(a, _measure(genomes, lone, start_power=power, repeats=1, clock=clock))
+                b = max(b, _measure(genomes, col, start_power=power, repeats=1, colony=colony,
+                                    clock=clock))  # fmt: skip
+            print(
+                f"threads {threads}: {name:6s} lone {a / 1e6:6.2f} M steps/s | colony of "
+                f"{args.robots} {b / 1e6:6.2f} M robot steps/s | ratio {b / a:.2f}"
+            )
     return 0
 
 

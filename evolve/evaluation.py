@@ -1,6 +1,7 @@
-"""Public entry of the table simulation: ``evaluate`` a population on shared start poses.
+"""Public entry of the table simulation: ``evaluate`` a population on shared start poses, one
+robot per run, or ``evaluate_colony``: a colony of R robots per run (SPEC §7).
 
-Import it as ``from evolve import evaluate`` (or ``from evolve.evaluation import evaluate``).
+Import them as ``from evolve import evaluate, evaluate_colony``.
 """
 
 from __future__ import annotations
@@ -14,10 +15,11 @@ from evolve import kernel
 from evolve.codec import FULL_GENES, SECTION_GENES, check_bits, decode
 from evolve.geometry import pack_world
 from evolve.interpreter import MODES
-from evolve.settings import WorldSettings
+from evolve.settings import ColonySettings, WorldSettings
 from evolve.table import validate_table
 
 DEFAULT_SETTINGS = WorldSettings()
+DEFAULT_COLONY = ColonySettings()
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,36 @@ def _check_starts(starts: np.ndarray, settings: WorldSettings) -> np.ndarray:
     return arr
 
 
+def _check_inputs(
+    genomes: np.ndarray,
+    table,
+    mode: str,
+    start_power: float,
+    max_steps: int | None,
+    settings: WorldSettings,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """(bits, table values, max_steps) checked, with the mode's default step limit."""
+    if mode not in MODES:
+        raise ValueError(f"mode must be 'coverage' or 'navigation', got {mode!r}")
+    bits = check_bits(genomes, name="genomes", population=True)
+    want = FULL_GENES if mode == "coverage" else SECTION_GENES
+    if bits.shape[1] != want:
+        raise ValueError(f"mode {mode!r} needs {want}-gene genomes, got {bits.shape[1]} genes")
+    values = validate_table(getattr(table, "values", table))
+    if max_steps is None:
+        max_steps = settings.coverage_steps if mode == "coverage" else settings.navigation_steps
+    if int(max_steps) != max_steps or max_steps < 0:
+        raise ValueError(f"max_steps must be an integer ≥ 0, got {max_steps}")
+    if not math.isfinite(start_power):
+        raise ValueError(f"start_power must be finite, got {start_power}")
+    return bits, values, int(max_steps)
+
+
+def _decoded(bits: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(loops, ops, arg, target), contiguous, for the kernels."""
+    return tuple(np.ascontiguousarray(a) for a in decode(bits))
+
+
 def evaluate(
     genomes: np.ndarray,
     starts: np.ndarray,
@@ -76,27 +108,11 @@ def evaluate(
     ``max_steps`` defaults to ``settings.coverage_steps`` (600) or ``navigation_steps`` (100).
     Equal to ``evolve.interpreter.run`` with a ``TableWorld``, run by run.
     """
-    if mode not in MODES:
-        raise ValueError(f"mode must be 'coverage' or 'navigation', got {mode!r}")
-    bits = check_bits(genomes, name="genomes", population=True)
-    want = FULL_GENES if mode == "coverage" else SECTION_GENES
-    if bits.shape[1] != want:
-        raise ValueError(f"mode {mode!r} needs {want}-gene genomes, got {bits.shape[1]} genes")
+    bits, values, max_steps = _check_inputs(genomes, table, mode, start_power, max_steps, settings)
     start_arr = _check_starts(starts, settings)
-    values = validate_table(getattr(table, "values", table))
-    if max_steps is None:
-        max_steps = settings.coverage_steps if mode == "coverage" else settings.navigation_steps
-    if int(max_steps) != max_steps or max_steps < 0:
-        raise ValueError(f"max_steps must be an integer ≥ 0, got {max_steps}")
-    if not math.isfinite(start_power):
-        raise ValueError(f"start_power must be finite, got {start_power}")
-    loops, ops, arg, target = (np.ascontiguousarray(a) for a in decode(bits))
     n_pop, n_start = bits.shape[0], start_arr.shape[0]
     out_int, out_pose = kernel.run_flat(
-        loops,
-        ops,
-        arg,
-        target,
+        *_decoded(bits),
         start_arr,
         values,
         pack_world(settings),
@@ -115,4 +131,111 @@ def evaluate(
     )
 
 
-__all__ = ["Evaluation", "evaluate"]
+@dataclass(frozen=True)
+class ColonyEvaluation:
+    """Outcome of P individuals × S colony starts of R robots; arrays indexed [individual,
+    start] for the colony and [individual, start, robot] per robot."""
+
+    squares: np.ndarray
+    """(P, S) int64: colony squares, reached by any robot."""
+    inner_squares: np.ndarray
+    """(P, S) int64: inner squares reached by any robot."""
+    colony_steps: np.ndarray
+    """(P, S) int64: colony steps the run lasted."""
+    robot_squares: np.ndarray
+    """(P, S, R) int64: squares each robot reached itself."""
+    robot_inner_squares: np.ndarray
+    """(P, S, R) int64: inner squares each robot reached itself."""
+    steps: np.ndarray
+    """(P, S, R) int64: gait steps each robot took."""
+    docks: np.ndarray
+    """(P, S, R) int64: times each robot docked."""
+    end: np.ndarray
+    """(P, S, R) int64: end code of each robot (as ``Evaluation.end``)."""
+    final_pose: np.ndarray
+    """(P, S, R, 3) float64: each robot's final x, y (arena units), heading (deg)."""
+    collisions: np.ndarray
+    """(P, S, R) int64: each robot's moves that another robot blocked (cancelled)."""
+    station_waits: np.ndarray
+    """(P, S, R) int64: each robot's steps that met the docking rule while another charged."""
+
+
+def _check_colony_starts(
+    starts: np.ndarray, settings: WorldSettings, colony: ColonySettings
+) -> np.ndarray:
+    arr = np.asarray(starts)
+    if arr.ndim != 3 or arr.shape[2] != 3 or 0 in arr.shape:
+        raise ValueError(
+            f"starts must be a float array (S, R, 3) of x, y, heading, got {arr.shape}"
+        )
+    if arr.shape[1] != colony.robots:
+        raise ValueError(f"starts hold {arr.shape[1]} robots but colony.robots = {colony.robots}")
+    flat = _check_starts(arr.reshape(-1, 3), settings).reshape(arr.shape)
+    d = flat[:, :, None, :2] - flat[:, None, :, :2]
+    dist = np.hypot(d[..., 0], d[..., 1])
+    dist[:, np.arange(arr.shape[1]), np.arange(arr.shape[1])] = np.inf
+    if (dist < colony.min_distance).any():
+        s, a, b = (int(v) for v in np.argwhere(dist < colony.min_distance)[0])
+        raise ValueError(
+            f"start {s}: robots {a} and {b} are {dist[s, a, b]:.3g} units apart, closer than "
+            f"two disc radii ({colony.min_distance:g})"
+        )
+    return flat
+
+
+def evaluate_colony(
+    genomes: np.ndarray,
+    starts: np.ndarray,
+    *,
+    table,
+    mode: str,
+    start_power: float = 4.0,
+    max_steps: int | None = None,
+    settings: WorldSettings = DEFAULT_SETTINGS,
+    colony: ColonySettings = DEFAULT_COLONY,
+) -> ColonyEvaluation:
+    """Run every individual of ``genomes`` as a colony from every colony start (SPEC §7).
+
+    ``starts``: (S, R, 3), R = ``colony.robots`` poses per run (inside the arena, centres at
+    least two disc radii apart). Every robot of a run carries the same chromosome and starts
+    with ``start_power``; ``max_steps`` bounds each robot's gait steps (default as
+    ``evaluate``). Other arguments as ``evaluate``. Equal to ``evolve.interpreter.run_colony``
+    with a ``TableColony``, run by run; with R = 1 equal to ``evaluate``.
+    """
+    bits, values, max_steps = _check_inputs(genomes, table, mode, start_power, max_steps, settings)
+    start_arr = _check_colony_starts(starts, settings, colony)
+    limit = -1 if colony.colony_step_limit is None else colony.colony_step_limit
+    params = (colony.disc_radius, colony.min_distance, colony.charge_steps, limit)
+    st, pose, out_run = kernel.run_colony_flat(
+        *_decoded(bits),
+        start_arr,
+        values,
+        pack_world(settings),
+        float(start_power),
+        max_steps,
+        mode == "navigation",
+        params,
+    )
+    shape = (bits.shape[0], start_arr.shape[0])
+    per_robot = st.reshape(shape + st.shape[1:])
+    per_run = out_run.reshape(shape + (3,))
+
+    def robot(col: int) -> np.ndarray:
+        return per_robot[..., col].copy()
+
+    return ColonyEvaluation(
+        squares=per_run[..., kernel.RUN_SQUARES].copy(),
+        inner_squares=per_run[..., kernel.RUN_INNER].copy(),
+        colony_steps=per_run[..., kernel.RUN_COLONY_STEPS].copy(),
+        robot_squares=robot(kernel.S_SQUARES),
+        robot_inner_squares=robot(kernel.S_INNER),
+        steps=robot(kernel.S_STEPS),
+        docks=robot(kernel.S_DOCKS),
+        end=robot(kernel.S_END),
+        final_pose=pose.reshape(shape + pose.shape[1:]),
+        collisions=robot(kernel.S_COLLISIONS),
+        station_waits=robot(kernel.S_WAITS),
+    )
+
+
+__all__ = ["ColonyEvaluation", "Evaluation", "evaluate", "evaluate_colony"]

@@ -4,7 +4,8 @@ Figure 8: the arena alone — the 10 × 10 squares with their central contact zo
 squares shaded), the kill zone, the power station and docking box, the two lights, the edges
 of their lit cones and the dark area. Figure 9: test fitness (% of the 64 inner squares) of each
 population's best individual per saved generation, 5 thin lines and their bold mean.
-Figure 10: a chromosome's track from a start pose (the table interpreter) over the arena.
+Figure 10: a chromosome's track from a start pose (the table interpreter) over the arena; for
+a colony (SPEC §7), every robot's track in its own colour from one colony start.
 Arena units (cm), x east, y north; headings 0 = north, clockwise.
 """
 
@@ -22,8 +23,8 @@ import numpy as np  # noqa: E402
 from matplotlib import patches  # noqa: E402
 
 from evolve import geometry  # noqa: E402
-from evolve.interpreter import END_NAMES  # noqa: E402
-from evolve.settings import WorldSettings  # noqa: E402
+from evolve.interpreter import END_NAMES, END_STEP_LIMIT  # noqa: E402
+from evolve.settings import ColonySettings, WorldSettings  # noqa: E402
 from evolve.table import GaitTable  # noqa: E402
 from infra.io import atomic_write  # noqa: E402
 
@@ -33,6 +34,11 @@ DPI = 130
 """Resolution of the PNG files."""
 CONE_EDGE_LENGTH_FACTOR = 1.5
 """Lit-cone edges are drawn this many arena sides long (the axes clip them at the walls)."""
+ROBOT_COLOURS = ("tab:blue", "tab:purple", "tab:brown", "tab:pink", "tab:cyan", "tab:olive",
+                 "tab:gray", "black")  # fmt: skip
+"""Track colour of colony robot i (cycled): none of the arena's green, red and orange."""
+HEADING_ARROW = 18.0
+"""Length of the start-heading arrow, arena units."""
 
 
 def lit_mask(world: WorldSettings, step: float = LIT_GRID_STEP) -> np.ndarray:
@@ -146,7 +152,12 @@ def figure8(path: str | Path, world: WorldSettings = geometry.DEFAULT_WORLD) -> 
     return _save(fig, Path(path))
 
 
-def figure9(path: str | Path, generations: Any, inner_percent: np.ndarray) -> Path:
+def figure9(
+    path: str | Path,
+    generations: Any,
+    inner_percent: np.ndarray,
+    title: str = "Figure 9: area-coverage fitness of each population's best individual",
+) -> Path:
     """Figure 9: one thin line per population (rows of ``inner_percent``, % of 64 inner
     squares) over ``generations``, and their mean in bold."""
     inner = np.asarray(inner_percent, dtype=float)
@@ -166,7 +177,7 @@ def figure9(path: str | Path, generations: Any, inner_percent: np.ndarray) -> Pa
     ax.set_xlabel("generation")
     ax.set_ylabel("test fitness (% of 64 inner squares)")
     ax.set_ylim(0, 100)
-    ax.set_title("Figure 9: area-coverage fitness of each population's best individual", fontsize=9)
+    ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     return _save(fig, Path(path))
@@ -202,8 +213,105 @@ def run_track(
     )
 
 
+def _draw_track(
+    ax: Any, track: np.ndarray, colour: str, label: str, start_colour: str, end_colour: str,
+    heading: float, end_marker: str = "s",
+) -> None:  # fmt: skip
+    """A track (rows x, y, …) as a line, its start (circle and heading arrow) and its end."""
+    track = np.asarray(track, dtype=float)
+    ax.plot(track[:, 0], track[:, 1], lw=0.9, color=colour, zorder=6, label=label)
+    ax.plot(*track[0, :2], "o", color=start_colour, mec="k", mew=0.4, ms=6, zorder=7,
+            label="start" if label == "track" else None)  # fmt: skip
+    ax.plot(*track[-1, :2], end_marker, color=end_colour, ms=5, zorder=7,
+            label="end" if label == "track" else None)  # fmt: skip
+    h = np.deg2rad(heading)
+    x, y = track[0, 0], track[0, 1]
+    ax.arrow(x, y, HEADING_ARROW * np.sin(h), HEADING_ARROW * np.cos(h), width=1.5,
+             color=start_colour, zorder=7)  # fmt: skip
+
+
+def run_colony_track(
+    chromosome: np.ndarray,
+    *,
+    table: GaitTable | np.ndarray,
+    world: WorldSettings,
+    colony: ColonySettings,
+    starts: np.ndarray,
+) -> Any:
+    """Run ``chromosome`` on a colony from ``starts`` (R, 3) with the reference interpreter
+    on the table world (coverage mode)."""
+    from evolve.interpreter import run_colony
+    from evolve.world import TableColony
+
+    values = getattr(table, "values", table)
+    tc = TableColony(values, starts, world, colony)
+    return run_colony(
+        np.asarray(chromosome, np.uint8), tc, settings=world, colony=colony,
+        start_power=world.start_power_v,
+    )  # fmt: skip
+
+
+def colony_figure10(
+    path: str | Path,
+    chromosome: np.ndarray,
+    *,
+    table: GaitTable | np.ndarray,
+    world: WorldSettings,
+    colony: ColonySettings,
+    starts: np.ndarray,
+    title: str = "",
+) -> dict[str, Any]:
+    """Figure 10 for a colony: every robot's track from its pose in ``starts`` (R, 3), one
+    colour per robot, over the arena with the colony's squares; each robot's final disc, an
+    × on robots that ended early. Returns the colony's and each robot's numbers."""
+    res = run_colony_track(chromosome, table=table, world=world, colony=colony, starts=starts)
+    fig, ax = plt.subplots(figsize=(6.2, 6.2))
+    draw_arena(ax, world, reached=frozenset(res.reached))
+    robots = []
+    for i, r in enumerate(res.robots):
+        c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
+        marker = "s" if r.end == END_STEP_LIMIT else "X"
+        label = f"robot {i}: {r.squares} sq, {r.docks} docks, {_end_name(r.end)}"
+        _draw_track(ax, r.track, c, label, c, c, float(starts[i][2]), marker)
+        x, y = r.final_pose[:2]
+        ax.add_patch(patches.Circle((x, y), colony.disc_radius, fill=False, ec=c, lw=1.0,
+                                    zorder=7))  # fmt: skip
+        robots.append(
+            {"robot": i, **_run_info(r), "collisions": int(r.collisions),
+             "station_waits": int(r.station_waits)}
+        )  # fmt: skip
+    info = {
+        "squares": int(res.squares),
+        "inner_squares": int(res.inner_squares),
+        "colony_steps": int(res.colony_steps),
+        "collisions": int(res.collisions),
+        "station_waits": int(res.station_waits),
+        "robots": robots,
+    }
+    ax.set_title(
+        f"Figure 10 {title}: a colony of {len(robots)} — {info['squares']} squares "
+        f"({info['inner_squares']} inner), {info['station_waits']} station waits, "
+        f"{info['collisions']} blocked moves",
+        fontsize=8,
+    )
+    ax.legend(loc="upper left", fontsize=6.5, framealpha=0.9)
+    _save(fig, Path(path))
+    return info
+
+
 def _end_name(end: Any) -> str:
     return END_NAMES[int(end)] if isinstance(end, int | np.integer) else str(end)
+
+
+def _run_info(res: Any) -> dict[str, Any]:
+    """A run's ``{squares, inner_squares, docks, steps, end}`` (end by name)."""
+    return {
+        "squares": int(res.squares),
+        "inner_squares": int(res.inner_squares),
+        "docks": int(res.docks),
+        "steps": int(res.steps),
+        "end": _end_name(res.end),
+    }
 
 
 def figure10(
@@ -218,23 +326,10 @@ def figure10(
     """Figure 10: the track of a 16-gene ``chromosome`` from ``start`` over the arena, with
     the squares it reached. Returns ``{squares, inner_squares, docks, steps, end}``."""
     res = run_track(chromosome, table=table, world=world, start=start)
-    track = np.asarray(res.track, dtype=float)
     fig, ax = plt.subplots(figsize=(6.2, 6.2))
     draw_arena(ax, world, reached=frozenset(res.reached))
-    ax.plot(track[:, 0], track[:, 1], lw=0.9, color="tab:blue", zorder=6, label="track")
-    ax.plot(*track[0, :2], "o", color="tab:green", ms=6, zorder=7, label="start")
-    ax.plot(*track[-1, :2], "s", color="tab:red", ms=5, zorder=7, label="end")
-    h = np.deg2rad(start[2])
-    ax.arrow(
-        start[0], start[1], 18 * np.sin(h), 18 * np.cos(h), width=1.5, color="tab:green", zorder=7
-    )
-    info = {
-        "squares": int(res.squares),
-        "inner_squares": int(res.inner_squares),
-        "docks": int(res.docks),
-        "steps": int(res.steps),
-        "end": _end_name(res.end),
-    }
+    _draw_track(ax, res.track, "tab:blue", "track", "tab:green", "tab:red", start[2])
+    info = _run_info(res)
     ax.set_title(
         f"Figure 10 {title}: from ({start[0]:g}, {start[1]:g}, {start[2]:g}°) — "
         f"{info['squares']} squares ({info['inner_squares']} inner), "
@@ -246,4 +341,13 @@ def figure10(
     return info
 
 
-__all__ = ["figure8", "figure9", "figure10", "draw_arena", "lit_mask", "run_track"]
+__all__ = [
+    "colony_figure10",
+    "draw_arena",
+    "figure8",
+    "figure9",
+    "figure10",
+    "lit_mask",
+    "run_colony_track",
+    "run_track",
+]

@@ -5,10 +5,12 @@ in degrees in [0, 360), 0 = north (+y), 90 = east, clockwise positive. Bearings 
 the heading are in (−180, 180], negative = left.
 
 Two layers:
-- scalar kernels (``move``, ``object_bits``, ``light_bits``, ``square_at``, ``killed``,
-  ``docked``, ...) over a *packed* settings vector ``p`` (``pack_world``). They use only
-  ``math`` and indexing, so the numba kernel compiles these very functions: the interpreter
-  and the kernel share every float formula, operation for operation.
+- scalar kernels (``move``, ``object_bits``, ``disc_bits``, ``too_close``, ``light_bits``,
+  ``square_at``, ``killed``, ``docked``, ...) over a *packed* settings vector ``p``
+  (``pack_world``). They use only ``math`` and indexing, so the numba kernel compiles these
+  very functions: the interpreter and the kernel share every float formula, operation for
+  operation. Other robots of a colony (SPEC §7) are discs: ``disc_bits`` (object sensors) and
+  ``too_close`` (cancelled moves).
 - public wrappers over ``WorldSettings`` (``apply_gait``, ``light_sensors``, ...).
 
 Square index: square (i, j) with i the column (x) and j the row (y) has index i + grid_n·j.
@@ -167,18 +169,43 @@ def move(x, y, h, f, t, dh):
 
 
 @register_jitable
-def _span_reaches(rel, a, b, dist, reach):
-    """Whether a wall at perpendicular ``dist`` whose normal lies at relative bearing ``rel``
-    is within ``reach`` along the direction of span [a, b] closest to that normal."""
+def _span_offset(rel, a, b):
+    """Angle (deg, in [0, 180]) from relative bearing ``rel`` to the closest direction of
+    span [a, b]; 0 when ``rel`` lies in the span."""
     u = wrap360(rel - a)
     w = b - a
     if u <= w:
-        delta = 0.0
-    else:
-        delta = min(u - w, 360.0 - u)
+        return 0.0
+    return min(u - w, 360.0 - u)
+
+
+@register_jitable
+def _span_reaches(rel, a, b, dist, reach):
+    """Whether a wall at perpendicular ``dist`` whose normal lies at relative bearing ``rel``
+    is within ``reach`` along the direction of span [a, b] closest to that normal."""
+    delta = _span_offset(rel, a, b)
     if delta >= 90.0:
         return False
     return dist <= reach * math.cos(delta * DEG2RAD)
+
+
+@register_jitable
+def _disc_reaches(rel, a, b, dist, radius, reach):
+    """Whether some point of a disc (``radius``; centre at ``dist`` > ``radius``, relative
+    bearing ``rel``) lies within ``reach`` along a direction of span [a, b].
+
+    The closest such point lies on the span direction closest to the centre, δ off it: that
+    ray enters the disc at d·cos δ − √(r² − d²·sin² δ), and misses it if d·sin δ > r."""
+    delta = _span_offset(rel, a, b)
+    if delta == 0.0:
+        return dist - radius <= reach
+    if delta >= 90.0:
+        return False
+    r = delta * DEG2RAD
+    off = dist * math.sin(r)
+    if off > radius:
+        return False
+    return dist * math.cos(r) - math.sqrt(radius * radius - off * off) <= reach
 
 
 @register_jitable
@@ -208,6 +235,39 @@ def object_bits(x, y, h, p):
         if _span_reaches(rel, p[P_OR_A], p[P_OR_B], dist, reach):
             bits |= OBJECT_RIGHT
     return bits
+
+
+@register_jitable
+def disc_bits(x, y, h, ox, oy, radius, p):
+    """Object-sensor bits (OBJECT_LEFT | OBJECT_RIGHT) that another robot, a disc of
+    ``radius`` centred at (ox, oy), activates at pose (x, y, h) (SPEC §7): a span is active if
+    some point of the disc lies within P_OBJ_RANGE along a direction in the span."""
+    reach = p[P_OBJ_RANGE]
+    dx = ox - x
+    dy = oy - y
+    d2 = dx * dx + dy * dy
+    far = reach + radius
+    if d2 > far * far:
+        return 0
+    d = math.sqrt(d2)
+    if d <= radius:  # the sensors lie inside the disc (never after a cancelled move)
+        return OBJECT_LEFT | OBJECT_RIGHT
+    rel = wrap180(math.atan2(dx, dy) * RAD2DEG - h)
+    bits = 0
+    if _disc_reaches(rel, p[P_OL_A], p[P_OL_B], d, radius, reach):
+        bits |= OBJECT_LEFT
+    if _disc_reaches(rel, p[P_OR_A], p[P_OR_B], d, radius, reach):
+        bits |= OBJECT_RIGHT
+    return bits
+
+
+@register_jitable
+def too_close(x, y, ox, oy, min_dist):
+    """Whether centres (x, y) and (ox, oy) are closer than ``min_dist`` (SPEC §7 collision:
+    two disc radii; exactly ``min_dist`` apart is allowed)."""
+    dx = ox - x
+    dy = oy - y
+    return dx * dx + dy * dy < min_dist * min_dist
 
 
 @register_jitable
@@ -336,6 +396,7 @@ def lit(x: float, y: float, world: WorldSettings = DEFAULT_WORLD) -> tuple[bool,
 
 __all__ = [
     "apply_gait",
+    "disc_bits",
     "docked",
     "in_kill_zone",
     "is_docked",
@@ -352,6 +413,7 @@ __all__ = [
     "square_at",
     "square_index",
     "square_is_inner",
+    "too_close",
     "wrap180",
     "wrap360",
 ]

@@ -41,7 +41,7 @@ from infra.io import atomic_write_text
 
 CHECKPOINT_EVERY = 16
 """Generations between checkpoints of a population (operational, not a SPEC value)."""
-STAGE_IDS = {"navigation": 0, "coverage": 1}
+STAGE_IDS = {"navigation": 0, "coverage": 1, "colony": 2}
 """Second entropy word of each stage's SeedSequence, so the stages draw different numbers."""
 HISTORY_COLUMNS = ("generation", "best_fitness", "mean_fitness", "docked_fraction", "unique")
 """Columns of ``history_pop{k}.csv``: per generation, on that generation's 10 starts;
@@ -68,6 +68,11 @@ class Stage:
     run_fitness: Callable[[Any, np.ndarray, WorldSettings], np.ndarray]
     navigation: np.ndarray | None = None
     """Fixed navigation section (8, 30) appended to every coverage section."""
+    evaluate: Callable[..., Any] | None = None
+    """Batch evaluation with ``evolve.evaluate``'s signature; None: ``evolve.evaluate``, one
+    robot per run (the colony stage passes ``evaluate_colony`` bound to its settings)."""
+    extra_settings: tuple[Any, ...] = ()
+    """Further settings dataclasses saved with the stage and checked on resume."""
 
     def genomes(self, sections: np.ndarray) -> np.ndarray:
         """Chromosomes the kernel runs: the sections, or sections + navigation (P, 16, 30)."""
@@ -97,7 +102,7 @@ def evaluate_sections(
     packed = np.packbits(sections.reshape(p, -1), axis=1)
     _, first, inverse = np.unique(packed, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
-    ev = evaluate(
+    ev = (stage.evaluate or evaluate)(
         stage.genomes(sections[first]),
         np.ascontiguousarray(starts, dtype=np.float64),
         table=table.values,

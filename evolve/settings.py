@@ -1,4 +1,4 @@
-"""Settings of the table world and the GA (SPEC §3, §5, §6) as frozen dataclasses.
+"""Settings of the table world, the colony and the GA (SPEC §3, §5–7) as frozen dataclasses.
 
 Every value the SPEC marks [chosen] is a named field here; [paper] values are fields too so
 that a run folder's saved settings say exactly how it was made. Units: lengths in arena units
@@ -13,6 +13,13 @@ import json
 import math
 from dataclasses import dataclass
 from typing import Any
+
+from infra.errors import InputError
+
+
+class SettingsError(InputError, ValueError):
+    """Settings that cannot describe a run (a bad power model, an impossible colony); the
+    message names the field."""
 
 
 @dataclass(frozen=True)
@@ -115,18 +122,18 @@ class WorldSettings:
 
     def gait_costs_v(self) -> tuple[float, ...]:
         """Power used by one cycle of each of the 16 gaits, volts, under ``power_model``;
-        ``ValueError`` naming the problem for an unknown model or a bad ``gait_dv``."""
+        ``SettingsError`` naming the problem for an unknown model or a bad ``gait_dv``."""
         if self.power_model == "paper":
             return tuple(0.0 if g == self.still_gait else self.gait_cost_v for g in range(16))
         if self.power_model != "table":
-            raise ValueError(f"power_model must be 'paper' or 'table', got {self.power_model!r}")
+            raise SettingsError(f"power_model must be 'paper' or 'table', got {self.power_model!r}")
         dv = self.gait_dv
         if dv is None or len(dv) != 16:
             n = "none" if dv is None else len(dv)
-            raise ValueError(f"power_model 'table' needs gait_dv: 16 voltage drops, got {n}")
+            raise SettingsError(f"power_model 'table' needs gait_dv: 16 voltage drops, got {n}")
         bad = [g for g, v in enumerate(dv) if not (math.isfinite(v) and v >= 0.0)]
         if bad:
-            raise ValueError(f"gait_dv must be finite volts >= 0; gaits {bad} are not")
+            raise SettingsError(f"gait_dv must be finite volts >= 0; gaits {bad} are not")
         return tuple(float(v) for v in dv)
 
     def to_dict(self) -> dict[str, Any]:
@@ -136,6 +143,64 @@ class WorldSettings:
 def with_table_power(world: WorldSettings, dv: Any) -> WorldSettings:
     """``world`` with the ``table`` power model: gait g costs ``dv[g]`` volts per cycle."""
     return dataclasses.replace(world, power_model="table", gait_dv=tuple(float(v) for v in dv))
+
+
+@dataclass(frozen=True)
+class ColonySettings:
+    """A colony of robots sharing the arena and its one station (SPEC §7).
+
+    Every robot runs the same chromosome under ``WorldSettings``; these fields add what the
+    colony needs. Lengths in arena units (cm); times in colony steps (one step of every live
+    robot, in index order).
+    """
+
+    robots: int = 3
+    """Robots in the colony, R [chosen]."""
+    disc_radius: float = 15.0
+    """Table-world footprint: a disc of this radius around each robot's centre, units [chosen].
+    A move that would bring two centres closer than two radii is cancelled; object sensors
+    see every point of another robot's disc within ``WorldSettings.object_range``."""
+    charge_steps: int = 10
+    """Colony steps a docked robot occupies the station while charging (power rising linearly
+    to ``charged_power_v``, the robot standing still) before its backup cycles [chosen].
+    0 charges at once, as one robot does in SPEC §3."""
+    start_separation: float = 40.0
+    """Colony start poses: every centre at least this far from every other, units [chosen]."""
+    colony_step_limit: int | None = None
+    """If set, the run also ends after this many colony steps (SPEC §7 read literally: a
+    robot's charging steps then come out of its 600). None (default): each robot takes up
+    to ``coverage_steps`` (``navigation_steps``) gait steps of its own, charging steps not
+    counted, and the run ends when no robot is live — so R = 1 is exactly one robot [chosen;
+    see docs/colony.md]."""
+    start_attempts: int = 10_000
+    """Rejection draws allowed per robot's start pose before the sampler gives up (a bound,
+    not a SPEC value)."""
+
+    def __post_init__(self) -> None:
+        if self.robots < 1:
+            raise SettingsError(f"robots must be ≥ 1, got {self.robots}")
+        if not self.disc_radius >= 0.0:
+            raise SettingsError(f"disc_radius must be ≥ 0, got {self.disc_radius}")
+        if self.charge_steps < 0:
+            raise SettingsError(f"charge_steps must be ≥ 0, got {self.charge_steps}")
+        if not self.start_separation >= 2.0 * self.disc_radius:
+            raise SettingsError(
+                f"start_separation {self.start_separation} must be at least two disc radii "
+                f"({2.0 * self.disc_radius}): robots would start overlapping"
+            )
+        if self.colony_step_limit is not None and self.colony_step_limit < 0:
+            limit = self.colony_step_limit
+            raise SettingsError(f"colony_step_limit must be ≥ 0 or None, got {limit}")
+        if self.start_attempts < 1:
+            raise SettingsError(f"start_attempts must be ≥ 1, got {self.start_attempts}")
+
+    @property
+    def min_distance(self) -> float:
+        """Closest allowed distance between two robots' centres: two disc radii, units."""
+        return 2.0 * self.disc_radius
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
 
 
 @dataclass(frozen=True)
@@ -183,6 +248,8 @@ def settings_json(*objs: Any) -> str:
 
 
 __all__ = [
+    "SettingsError",
+    "ColonySettings",
     "GASettings",
     "WorldSettings",
     "navigation_ga_settings",

@@ -130,7 +130,7 @@ def _check_navigation(navigation: np.ndarray) -> np.ndarray:
 def _settings_doc(
     stage: Stage, ga: GASettings, world: WorldSettings, table: GaitTable
 ) -> dict[str, Any]:
-    doc = json.loads(settings_json(ga, world))
+    doc = json.loads(settings_json(ga, world, *stage.extra_settings))
     doc["stage"] = stage.name
     doc["table"] = {"source": table.source, "values": table.values.tolist()}
     if stage.navigation is not None:

@@ -1,16 +1,18 @@
-"""Start poses of runs (SPEC §5, §6): the one home of every start-pose sampler.
+"""Start poses of runs (SPEC §5–7): the one home of every start-pose sampler.
 
 A pose is (x, y, heading): x east, y north in arena units (cm), heading in degrees in
 [0, 360), 0 = north, clockwise. Every sampler takes an explicit ``np.random.Generator`` and
-draws ``rng.random((n, 3))`` once (x, y, heading per pose), so the same generator state gives
-the same poses bit for bit.
+draws three uniform numbers per pose (x, y, heading), in order, so the same generator state
+gives the same poses bit for bit. The colony sampler draws its poses one at a time and
+rejects those too close to the run's earlier robots; with one robot it gives exactly the
+coverage sampler's poses.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from evolve.settings import WorldSettings
+from evolve.settings import ColonySettings, WorldSettings
 
 
 def _uniform_poses(
@@ -33,4 +35,33 @@ def coverage_starts(rng: np.random.Generator, n: int, world: WorldSettings) -> n
     return _uniform_poses(rng, n, world.coverage_start_x, world.coverage_start_y)
 
 
-__all__ = ["coverage_starts", "navigation_starts"]
+def colony_starts(
+    rng: np.random.Generator, n: int, world: WorldSettings, colony: ColonySettings
+) -> np.ndarray:
+    """(n, R, 3) colony start poses (SPEC §7): for each of ``n`` runs, R = ``colony.robots``
+    poses from the coverage start region, each centre at least ``colony.start_separation``
+    from the run's earlier ones, by rejection (a rejected pose is redrawn).
+
+    Raises ``ValueError`` when a robot cannot be placed in ``colony.start_attempts`` draws
+    (too many robots for the region at that separation)."""
+    sep2 = colony.start_separation**2
+    out = np.empty((n, colony.robots, 3))
+    for run in range(n):
+        for i in range(colony.robots):
+            for _ in range(colony.start_attempts):
+                pose = _uniform_poses(rng, 1, world.coverage_start_x, world.coverage_start_y)[0]
+                d = out[run, :i, :2] - pose[:2]
+                if (d[:, 0] ** 2 + d[:, 1] ** 2 >= sep2).all():
+                    break
+            else:
+                raise ValueError(
+                    f"cannot place robot {i + 1} of {colony.robots} at least "
+                    f"{colony.start_separation:g} units from the others in the start region "
+                    f"x {world.coverage_start_x}, y {world.coverage_start_y} "
+                    f"({colony.start_attempts} draws)"
+                )
+            out[run, i] = pose
+    return out
+
+
+__all__ = ["colony_starts", "coverage_starts", "navigation_starts"]

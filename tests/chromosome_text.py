@@ -29,3 +29,16 @@ STILL = gene("00", G(7), G(7), G(7), G(7))
 def chrom(*genes: str, n: int = 16) -> np.ndarray:
     """Chromosome from the given genes, the rest filled with ``STILL``."""
     return parse_chromosome("\n".join(list(genes) + [STILL] * (n - len(genes))))
+
+
+LIGHT_FOLLOWER = "\n".join(
+    [
+        gene("00", B(7, 1), B(6, 2), B(5, 3), G(14)),  # both lights: 1, left: 2, right: 3
+        gene("00", G(0), B(0, 0), G(7), G(7)),  # ahead, look again
+        gene("00", G(3), B(0, 0), G(7), G(7)),  # left, look again
+        gene("00", G(11), B(0, 0), G(7), G(7)),  # right, look again
+    ]
+    + [STILL] * 4
+)
+"""A hand-written navigation section that walks towards the lights and turns on the spot in
+the dark: with the paper's table it docks from 60 % of coverage start poses."""

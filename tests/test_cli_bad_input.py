@@ -105,6 +105,9 @@ CASES = {
         (["coverage", "--navigation", "{dir}"], "a_folder: is a folder, not a chromosome file"),
         (["coverage", "--navigation", "{binary}"], "binary.bin: holds binary data"),
         (["coverage", "--navigation", "{chrom7}"], "expected 8 or 16 genes, found 7"),
+        (["colony", "--robots", "0", "--navigation", "{chrom8}"], "--robots must be an integer"),
+        (["navigation", "--robots", "3"], "--robots is an option of the colony stage"),
+        (["colony", "--navigation", "{binary}"], "binary.bin: holds binary data"),
     ],
     "trace": [
         (["{dir}", "--start", "250", "250", "0"], "a_folder: is a folder, not a chromosome"),

@@ -71,6 +71,21 @@ def test_coverage_outputs(run_dir):
     assert math.isclose(summary["final_mean_inner_percent"], mean, abs_tol=1e-3)
 
 
+def test_colony_outputs(run_dir, capsys):
+    args = ["evolve", "colony", *TINY, "--generations", "2", "--robots", "2", "--out", str(run_dir)]
+    assert servobot(args) == 0
+    assert "colony of 2: Figure 9 at generation 2" in capsys.readouterr().out
+    col = run_dir / "colony"
+    summary = json.loads((col / "summary.json").read_text())
+    assert summary["robots"] == 2 and summary["generations"] == [0, 1, 2]
+    assert summary["settings"]["ColonySettings"]["robots"] == 2
+    nav = read_chromosome(run_dir / "navigation/best.txt")
+    for k in (0, 1):
+        np.testing.assert_array_equal(read_chromosome(col / f"best_pop{k}.txt")[8:], nav)
+        assert (col / f"figure10_pop{k}.png").stat().st_size > 10_000
+    assert (col / "figure9.csv").read_text().startswith("population,generation,inner_percent")
+
+
 def test_resume_of_a_finished_run_changes_nothing(run_dir, capsys):
     before = (run_dir / "coverage/figure9.csv").read_text()
     args = ["coverage", *TINY, "--generations", "3", "--out", str(run_dir), "--resume"]
@@ -87,10 +102,19 @@ def test_resume_of_a_finished_run_changes_nothing(run_dir, capsys):
         (["navigation", "--generations", "0", "--out", "{tmp}"], "generations must be"),
         (["navigation", "--table", "{tmp}/none.json", "--out", "{tmp}"], "no such gait-table"),
         (["navigation", "--navigation", "x.txt", "--out", "{tmp}"], "option of the coverage"),
+        (["colony", "--out", "{tmp}"], "no navigation section file"),
+        (["coverage", "--robots", "2", "--out", "{tmp}"], "option of the colony"),
+        (["colony", "--robots", "0", "--out", "{tmp}"], "--robots must be"),
+        (
+            ["colony", "--robots", "40", "--navigation", "{nav}", "--out", "{tmp}"],
+            "cannot place robot",
+        ),
     ],
 )
 def test_bad_input_exits_2_with_a_message(tmp_path, capsys, args, message):
-    argv = [a.replace("{tmp}", str(tmp_path)) for a in args] + ["--no-progress"]
+    nav = write_chromosome(tmp_path / "nav.txt", np.zeros((8, 30), dtype=np.uint8))
+    argv = [a.replace("{tmp}", str(tmp_path)).replace("{nav}", str(nav)) for a in args]
+    argv += ["--no-progress"]
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err

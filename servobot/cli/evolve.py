@@ -1,15 +1,17 @@
-"""``servobot evolve navigation|coverage``: the CGA stages from the command line.
+"""``servobot evolve navigation|coverage|colony``: the CGA stages from the command line.
 
-A thin layer over ``evolve.stages``::
+A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
 
     servobot evolve navigation [--populations 5 --generations 1024 --population-size 256
                                 --seed 0 --table paper|PATH --power paper|table
                                 --out runs/evolve --resume
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
+    servobot evolve colony     [... as coverage ... --robots 3]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
-``GASettings()`` for coverage. ``--navigation`` defaults to ``DIR/navigation/best.txt``; a
+``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
+R). ``--navigation`` defaults to ``DIR/navigation/best.txt``; a
 16-gene file (e.g. a ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the
 navigation section, are used. Bad input (missing or malformed files, a bad gait table,
 impossible sizes, a run folder holding another run or in use) prints one message and exits
@@ -52,9 +54,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="servobot evolve",
         description="Run a CGA stage on the table simulation: navigation (the docking "
-        "section), then coverage (the area-coverage section with the navigation fixed).",
+        "section), then coverage (the area-coverage section with the navigation fixed), or "
+        "colony (coverage learned by a colony of robots sharing the station).",
     )
-    p.add_argument("stage", choices=("navigation", "coverage"), help="which stage to run")
+    p.add_argument("stage", choices=("navigation", "coverage", "colony"), help="which stage to run")
     p.add_argument(
         "--populations", type=int, default=None, help="independent populations (default 5)"
     )
@@ -62,7 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--generations",
         type=int,
         default=None,
-        help="generations (default 1024 for navigation, 512 for coverage)",
+        help="generations (default 1024 for navigation, 512 for coverage and colony)",
     )
     p.add_argument(
         "--population-size", type=int, default=None, help="individuals per population (256)"
@@ -87,7 +90,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--navigation",
         type=Path,
         default=None,
-        help="coverage only: navigation section file (default DIR/navigation/best.txt)",
+        help="coverage and colony: navigation section file (default DIR/navigation/best.txt)",
+    )
+    p.add_argument(
+        "--robots", type=int, default=None, help="colony only: robots sharing the station (3)"
     )
     p.add_argument(
         "--power",
@@ -181,10 +187,39 @@ def _print_coverage(summary: dict[str, Any], out: Path) -> None:
     print(f"wrote {out / 'coverage'} and {out / 'figure8.png'} ({summary['wall_s']:.1f} s)")
 
 
+def _print_colony(summary: dict[str, Any], out: Path) -> None:
+    gen = summary["generations"][-1]
+    per = ", ".join(f"{v:.1f}" for v in summary["final_inner_percent"])
+    print(
+        f"colony of {summary['robots']}: Figure 9 at generation {gen}: mean "
+        f"{summary['final_mean_inner_percent']:.1f}% of the 64 inner squares (populations: "
+        f"{per}); the same bests alone: {summary['one_robot_final_mean_inner_percent']:.1f}%"
+    )
+    for t in summary["final_test"]:
+        print(
+            f"  population {t['population']}: per robot {t['robot_inner_percent']:.1f}%, "
+            f"{t['docks_per_robot']:.1f} docks/robot, {t['station_waits_per_run']:.1f} station "
+            f"waits and {t['collisions_per_run']:.1f} blocked moves per run"
+        )
+    print(f"wrote {out / 'colony'} ({summary['wall_s']:.1f} s)")
+
+
+def _colony(robots: int | None) -> Any:
+    from evolve.settings import ColonySettings
+
+    if robots is None:
+        return ColonySettings()
+    check_int(robots, "--robots", lo=1)
+    return ColonySettings(robots=robots)
+
+
 def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     from evolve import stages
     from evolve.table import load_table, with_power_model
 
+    if args.robots is not None and args.stage != "colony":
+        raise CliError("--robots is an option of the colony stage")
+    colony = _colony(args.robots)
     ga = ga_settings(args)
     table = load_table(args.table)
     world = with_power_model(WorldSettings(), args.power, table)
@@ -193,11 +228,17 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
               on_generation=bars, executor=executor(args))  # fmt: skip
     if args.stage == "navigation":
         if args.navigation is not None:
-            raise CliError("--navigation is an option of the coverage stage")
+            raise CliError("--navigation is an option of the coverage and colony stages")
         _print_navigation(stages.run_navigation(args.out, **kw), args.out)
-    else:
-        navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt")
+        return 0
+    navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt")
+    if args.stage == "coverage":
         _print_coverage(stages.run_coverage(args.out, navigation=navigation, **kw), args.out)
+    else:
+        from evolve.colony_stage import run_colony_stage
+
+        summary = run_colony_stage(args.out, navigation=navigation, colony=colony, **kw)
+        _print_colony(summary, args.out)
     return 0
 
 

@@ -1,0 +1,221 @@
+"""The colony stage (SPEC §7): area coverage learned by a colony of R robots sharing one
+station, all carrying the evolved chromosome.
+
+It is the coverage stage of SPEC §5 with the colony's fitness: every individual runs as a
+colony of ``ColonySettings.robots`` from colony start poses (``evolve.starts.colony_starts``,
+10 per generation, shared by the population) and a run scores the colony's squares, the union
+of its robots' (``evolve.evaluate_colony``). The generation loop, checkpoints, seeds and the
+Figure 9 test are the other stages' (``evolve.population``, ``evolve.stages``): only the
+``Stage`` differs.
+
+Layout under the run folder ``out``::
+
+    colony/settings.json  colony/history_pop{k}.csv  colony/populations/  colony/checkpoints/
+    colony/figure9.{csv,json,png}  colony/best_pop{k}.txt  colony/figure10_pop{k}.png
+    colony/summary.json
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evolve.codec import write_chromosome
+from evolve.interpreter import END_NAMES
+from evolve.population import OnGeneration, Stage, StageError, save_generations
+from evolve.settings import ColonySettings, GASettings, WorldSettings
+from evolve.stages import (
+    _check_navigation,
+    _provenance,
+    _run_populations,
+    _stage_folder,
+    _write_figure9,
+    coverage_run_fitness,
+    figure9_test,
+)
+from evolve.starts import colony_starts
+from evolve.table import GaitTable
+from infra.executors import Executor
+from infra.io import atomic_write_json
+
+FIGURE10_SEED = 10
+"""Seed of the one colony start (R poses from ``colony_starts``) of every population's
+Figure 10 tracks."""
+DEFAULT_WORLD = WorldSettings()
+DEFAULT_GA = GASettings()
+DEFAULT_COLONY = ColonySettings()
+
+
+def _evaluate_colony(genomes: np.ndarray, starts: np.ndarray, **kw: Any) -> Any:
+    from evolve.evaluation import evaluate_colony  # numba: loaded on first use
+
+    return evaluate_colony(genomes, starts, **kw)
+
+
+def colony_stage(world: WorldSettings, colony: ColonySettings, navigation: np.ndarray) -> Stage:
+    """The colony's ``Stage``: coverage mode, colony starts, colony squares as run fitness."""
+    nav = _check_navigation(navigation)
+    try:
+        colony_starts(np.random.default_rng(0), 1, world, colony)
+    except ValueError as exc:
+        raise StageError(str(exc)) from exc
+    return Stage(
+        "colony",
+        "coverage",
+        world.coverage_steps,
+        functools.partial(colony_starts, colony=colony),
+        coverage_run_fitness,
+        nav,
+        evaluate=functools.partial(_evaluate_colony, colony=colony),
+        extra_settings=(colony,),
+    )
+
+
+def figure10_starts(world: WorldSettings, colony: ColonySettings) -> np.ndarray:
+    """(R, 3): the colony start of the Figure 10 tracks, drawn with ``FIGURE10_SEED``."""
+    return colony_starts(np.random.default_rng(FIGURE10_SEED), 1, world, colony)[0]
+
+
+def run_colony_stage(
+    out: Path,
+    *,
+    navigation: np.ndarray,
+    table: GaitTable,
+    ga: GASettings = DEFAULT_GA,
+    world: WorldSettings = DEFAULT_WORLD,
+    colony: ColonySettings = DEFAULT_COLONY,
+    resume: bool = False,
+    force: bool = False,
+    on_generation: OnGeneration | None = None,
+    executor: Executor | None = None,
+) -> dict[str, Any]:
+    """Colony stage (SPEC §7) into ``out/colony``; returns the summary (also
+    ``summary.json``). ``executor``: where the populations evolve, and ``resume``/``force``
+    (the run folder's lock and ownership), as in ``evolve.stages.run_navigation``.
+
+    Figure 9: the best section of each saved generation of each population, as a colony
+    with the fixed ``navigation`` section, from the same ``ga.test_starts`` fresh colony
+    starts; colony inner squares / 64 as a percentage. Summary keys as the coverage stage's
+    (``figure9_*``, ``final_mean_inner_percent``, ``final_inner_percent``, ``figure10``) plus
+    ``robots``, ``final_test`` (per population: colony and per-robot coverage, docks, station
+    waits, blocked moves, ends, and the same best measured alone) and
+    ``one_robot_final_mean_inner_percent``.
+    """
+    folder = Path(out) / "colony"
+    stage = colony_stage(world, colony, navigation)
+    with _stage_folder(stage, folder, table, ga, world, resume, force) as doc:
+        return _colony(stage, folder, doc, table, ga, world, colony, resume, on_generation,
+                       executor)  # fmt: skip
+
+
+def _colony(
+    stage: Stage, folder: Path, doc: dict[str, Any], table: GaitTable, ga: GASettings,
+    world: WorldSettings, colony: ColonySettings, resume: bool,
+    on_generation: OnGeneration | None, executor: Executor | None,
+) -> dict[str, Any]:  # fmt: skip
+    from evolve import figures
+
+    t0 = time.perf_counter()
+    results, test_starts = _run_populations(
+        stage, folder, doc, table=table, ga=ga, world=world, resume=resume,
+        on_generation=on_generation, executor=executor,
+    )  # fmt: skip
+    gens = save_generations(ga)
+    inner, squares = figure9_test(folder, stage, table, world, gens, ga.populations, test_starts)
+    _write_figure9(folder, gens, inner, squares)
+    r = colony.robots
+    figures.figure9(
+        folder / "figure9.png", gens, inner,
+        title=f"Figure 9, a colony of {r}: colony inner squares of each population's best",
+    )  # fmt: skip
+    bests = np.stack([stage.genomes(res.best[None])[0] for res in results])
+    final = final_test(bests, test_starts, table, world, colony)
+    fig10 = []
+    start = figure10_starts(world, colony)
+    for k, full in enumerate(bests):
+        extra = (
+            f"16 genes: coverage section (learned as a colony of {r}) + navigation (fixed); "
+            f"Figure 9 test {inner[k, -1]:.1f}% of the {world.inner_square_count} inner squares"
+        )
+        write_chromosome(
+            folder / f"best_pop{k}.txt", full, _provenance("colony", k, ga, table, extra)
+        )
+        fig = figures.colony_figure10(
+            folder / f"figure10_pop{k}.png", full, table=table, world=world, colony=colony,
+            starts=start, title=f"population {k}",
+        )  # fmt: skip
+        fig10.append({"population": k, **fig})
+    mean = inner.mean(axis=0)
+    summary = {
+        "stage": "colony",
+        "robots": r,
+        "generations": list(gens),
+        "figure9_mean_inner_percent": mean.tolist(),
+        "figure9_inner_percent": inner.tolist(),
+        "final_mean_inner_percent": float(mean[-1]),
+        "final_inner_percent": inner[:, -1].tolist(),
+        "final_mean_squares": squares[:, -1].tolist(),
+        "one_robot_final_mean_inner_percent": float(
+            np.mean([p["one_robot_inner_percent"] for p in final])
+        ),
+        "final_test": final,
+        "figure10_starts": start.tolist(),
+        "figure10": fig10,
+        "test_starts": len(test_starts),
+        "wall_s": time.perf_counter() - t0,
+        "resumed": bool(resume),
+        "settings": doc,
+    }
+    atomic_write_json(folder / "summary.json", summary)
+    return summary
+
+
+def final_test(
+    genomes: np.ndarray,
+    test_starts: np.ndarray,
+    table: GaitTable,
+    world: WorldSettings,
+    colony: ColonySettings,
+) -> list[dict[str, Any]]:
+    """Each population's final best (rows of ``genomes``, 16 genes) as a colony from the
+    colony ``test_starts`` (T, R, 3), and alone from each start's robot-0 pose (T, 3).
+
+    Per population: colony and per-robot inner coverage (% of the inner squares), squares,
+    docks per robot, station waits and blocked moves per run, colony steps, how the robots
+    ended (fractions), and the lone robot's inner coverage and squares.
+    """
+    from evolve.evaluation import evaluate, evaluate_colony
+
+    kw = dict(table=table.values, mode="coverage", start_power=world.start_power_v,
+              settings=world)  # fmt: skip
+    ev = evaluate_colony(genomes, test_starts, colony=colony, **kw)
+    lone = evaluate(genomes, np.ascontiguousarray(test_starts[:, 0]), **kw)
+    pct = 100.0 / world.inner_square_count
+    out = []
+    for k in range(genomes.shape[0]):
+        ends = np.bincount(ev.end[k].ravel(), minlength=len(END_NAMES)) / ev.end[k].size
+        out.append(
+            {
+                "population": k,
+                "colony_inner_percent": float(pct * ev.inner_squares[k].mean()),
+                "robot_inner_percent": float(pct * ev.robot_inner_squares[k].mean()),
+                "colony_squares": float(ev.squares[k].mean()),
+                "robot_squares": float(ev.robot_squares[k].mean()),
+                "docks_per_robot": float(ev.docks[k].mean()),
+                "station_waits_per_run": float(ev.station_waits[k].sum(axis=1).mean()),
+                "collisions_per_run": float(ev.collisions[k].sum(axis=1).mean()),
+                "colony_steps": float(ev.colony_steps[k].mean()),
+                "ends": {name: float(f) for name, f in zip(END_NAMES, ends, strict=True)},
+                "one_robot_inner_percent": float(pct * lone.inner_squares[k].mean()),
+                "one_robot_squares": float(lone.squares[k].mean()),
+                "one_robot_docks": float(lone.docks[k].mean()),
+            }
+        )
+    return out
+
+
+__all__ = ["FIGURE10_SEED", "colony_stage", "figure10_starts", "final_test", "run_colony_stage"]
