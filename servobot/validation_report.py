@@ -73,8 +73,11 @@ def summarise(runs: list[dict[str, Any]], world: WorldSettings, wall_s: float) -
     }
 
 
-def write_report(out: Path, report: dict[str, Any], tracks: dict[str, np.ndarray]) -> None:
-    """Write ``report.json``, ``report.md`` and ``tracks.npz`` atomically into ``out``."""
+def write_report(
+    out: Path, report: dict[str, Any], tracks: dict[str, np.ndarray], markdown: str | None = None
+) -> None:
+    """Write ``report.json``, ``report.md`` (``markdown``, default ``report_markdown``) and
+    ``tracks.npz`` atomically into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
 
     def write_npz(p: Path) -> None:
@@ -84,7 +87,7 @@ def write_report(out: Path, report: dict[str, Any], tracks: dict[str, np.ndarray
 
     atomic_write(out / "tracks.npz", write_npz)
     atomic_write_json(out / "report.json", report)
-    atomic_write_text(out / "report.md", report_markdown(report))
+    atomic_write_text(out / "report.md", report_markdown(report) if markdown is None else markdown)
 
 
 def _cell(rec: dict[str, Any] | None) -> str:
