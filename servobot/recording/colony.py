@@ -2,9 +2,11 @@
 
 One ``.rrd`` per colony run: every robot (``robot0`` … ``robot{R-1}``) in its own colour —
 the colours of the colony figures (``evolve.figures.ROBOT_COLOURS``) — with its bodies,
-contacts and rays (physics), both worlds' poses, tracks, squares, plots and logs
-(``servobot.recording.events``; the table world lighter), a ghost at its table pose, and the
-station on a timeline::
+servos and contacts (every servo frame of its own gait cycles; once at the end of each other
+robot's cycle, while it stands), its rays after each of its steps, its shell (the disc the
+others' rays see) as a translucent cylinder, both worlds' poses, tracks, squares, plots and
+logs (``servobot.recording.events``; the table world lighter), a ghost at its table pose,
+and the station on a timeline::
 
     colony/W/station          StateChange: "free" | "robotK charging" (from the dock on)
     colony/W/robotK           StateChange: "coverage" | "navigation" | "waiting" (docking
@@ -199,30 +201,50 @@ class ColonyRecorder:
         for i, name in enumerate(self.names):
             prefix = pc.prefixes[i]
             self.rec.log_robot_model(pc.model, prefix=prefix, robot=name, color=robot_color(i))
+            self._log_shell(pc, i)
             self.rec.log_ghost(pc.model, pc.data, prefix=prefix, robot=name, world_name="table")
             self.rec.log_start(pc.pose(i), world_name="physics", robot=name)
             self.rec.log_robot_state(pc.data, t_s=pc.t_s, robot=name, colony_step=0)
             self._log_rays(i, step=0, colony_step=0)
         self.timelines["physics"].start(times_of(pc.t_s, colony_step=0))
 
+    def _log_shell(self, pc: Any, i: int) -> None:
+        """Robot ``i``'s shell (``servo_mj.world.arena.SHELL``), static in its torso's frame."""
+        from servo_mj.world.arena import SHELL
+
+        g = pc.model.geom(pc.prefixes[i] + SHELL)
+        self.rec.rec.log(
+            f"world/robots/{self.names[i]}/bodies/torso/shell",
+            rr.Cylinders3D(
+                lengths=[2 * g.size[1]], radii=[g.size[0]], centers=[g.pos],
+                colors=[(*robot_color(i), 50)], fill_mode="solid",
+            ),
+            static=True,
+        )  # fmt: skip
+
     def on_frame(self, frame: Any) -> None:
-        """``PhysicsColony`` frame hook: every robot's state, in the colony step under way."""
+        """``PhysicsColony`` frame hook: the stepping robot's state, in the colony step under
+        way (the standing robots are logged once its cycle ends, in ``physics_event``)."""
         # Robot i's cycle in colony step c follows its branches in c, the events of robots
         # before it in c, and those of itself and robots after it in c − 1.
         i = self._pc.prefixes.index(frame.prefix)
         robot, step, branch = self._last
         same = robot < i or (robot == i and branch)
         colony_step = step if same and step > 0 else step + 1
-        for name in self.names:
-            self.rec.log_robot_state(frame.data, t_s=frame.t_s, robot=name,
-                                     colony_step=colony_step)  # fmt: skip
+        self.rec.log_robot_state(frame.data, t_s=frame.t_s, robot=self.names[i],
+                                 colony_step=colony_step)  # fmt: skip
 
     def physics_event(self, e: Any) -> None:
         """``run_colony``'s ``on_event`` in physics (a ``ColonyEvent``)."""
         self._last = (e.robot, e.colony_step, e.event.kind == "branch")
-        self._event(e, "physics", self._pc.t_s)
+        pc = self._pc
+        self._event(e, "physics", pc.t_s)
         if e.event.kind == "gait":
             self._log_rays(e.robot, step=int(e.event.step), colony_step=e.colony_step)
+            for j, name in enumerate(self.names):
+                if j != e.robot:  # standing (or pushed) while robot i walked
+                    self.rec.log_robot_state(pc.data, t_s=pc.t_s, robot=name,
+                                             colony_step=e.colony_step)  # fmt: skip
 
     def _log_rays(self, i: int, *, step: int, colony_step: int) -> None:
         pc = self._pc
