@@ -12,6 +12,12 @@ robot's own free joint is removed and the torso's placement moved onto the frame
 frame's free-joint qpos means what the robot's did (keyframes stay valid). The object-sensor
 rangefinder fans (``servo_mj.world.sensors``) are added to the torso before attaching.
 
+A colony arena (``build_arena(..., colony=ColonySettings(...))``, SPEC §7) holds R robots,
+attached as ``servobot0/`` … ``servobot{R-1}/``, each with a bumper (a sphere that collides
+with the other robots' bumpers only) and a shell (a cylinder that the other robots'
+rangefinders see), both of the table world's disc radius; see ``ArenaSettings``. A lone
+robot's arena (``colony`` None) has neither and is what it always was.
+
 Physics options (timestep, integrator, friction cone, solver, ...) and the floor's contact
 parameters are copied from the calibration scene (``models/servobot/scene.xml``) after
 compiling, so that the gaits walk in the arena as they did when the gait table was measured.

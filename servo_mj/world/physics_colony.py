@@ -54,7 +54,7 @@ def robot_rngs(seed: int, index: int, robots: int) -> list[np.random.Generator]:
 class PhysicsColony:
     """R ServoBots placed at ``starts`` ((R, 3): x, y cm, heading deg) in one MuJoCo arena.
 
-    ``colony`` (default ``ColonySettings(robots=len(starts))``) must hold R robots;
+    ``colony_settings`` (default ``ColonySettings(robots=len(starts))``) must hold R robots;
     ``physics`` is a ``PhysicsSettings`` (default if None); ``rngs`` one servo-noise generator
     per robot (default ``robot_rngs(0, 0, R)``). ``on_frame(frame)`` is called with a
     ``Frame`` after every control frame of every robot's gait cycle (recording).
