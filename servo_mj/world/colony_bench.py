@@ -3,8 +3,8 @@
 Robot 0 walks the same gait sequence from the arena centre while the other R − 1 robots stand
 far from it (no contact): one ``PhysicsColony.step(0, gait)`` per cycle, against
 ``PhysicsWorld.step(gait)`` in the lone arena. Every robot of the model is simulated while one
-walks (the standing robots hold their servos and stand on their feet), so a cycle costs about
-R times a lone one; a colony step of R live robots, R cycles of that, about R² times.
+walks (the standing robots hold their servos and stand on their feet): measured, each
+standing robot adds ≈ 0.6 of a lone cycle (docs/colony.md "Cost").
 
 Interleaved ``--repeats`` times in this process, CPU seconds (``time.process_time``); prints
 ms per cycle and the ratio to the lone arena; asserts nothing.
