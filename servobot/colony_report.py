@@ -18,7 +18,7 @@ import numpy as np
 from evolve.figures import DPI, draw_arena, draw_colony_robot
 from evolve.settings import WorldSettings
 from infra.io import atomic_write
-from servobot.validation_report import write_report
+from servobot.validation_report import markdown_document, write_report
 
 WORLDS = ("table", "physics")
 
@@ -182,34 +182,17 @@ def colony_summary_lines(report: dict[str, Any]) -> list[str]:
 
 def colony_report_markdown(report: dict[str, Any]) -> str:
     """``report.md`` of a colony validation."""
-    st = report["settings"]
-    lines = [
-        "# Colony validation: table simulation vs MuJoCo physics",
-        "",
+    st, su = report["settings"], report["summary"]
+    intro = (
         f"Gait table: `{report['table']['source']}`; mode {st['mode']}, up to "
-        f"{st['max_steps']} steps per robot; {report['summary']['starts']} colony starts of "
-        f"{report['summary']['robots']} robots.",
-        "",
-        "## Summary",
-        "",
-        *colony_summary_lines(report),
-        "",
-        "## Per start",
-        "",
-        *colony_run_rows(report),
-        "",
-        "## Per robot",
-        "",
-        *robot_rows(report),
-        "",
-    ]
-    errors = [r for r in report["runs"] if r.get("error")]
-    if errors:
-        lines += ["## Errors", ""]
-        lines += [f"- run {r['index']}: {r['error']}" for r in errors]
-        lines.append("")
-    lines += ["## Chromosome", "", "```", report["chromosome"].rstrip(), "```", ""]
-    return "\n".join(lines)
+        f"{st['max_steps']} steps per robot; {su['starts']} colony starts of {su['robots']} "
+        "robots."
+    )
+    return markdown_document(
+        report, "Colony validation: table simulation vs MuJoCo physics", intro,
+        [("Summary", colony_summary_lines(report)), ("Per start", colony_run_rows(report)),
+         ("Per robot", robot_rows(report))],
+    )  # fmt: skip
 
 
 def colony_tracks_figure(

@@ -147,24 +147,14 @@ def summary_lines(report: dict[str, Any]) -> list[str]:
     return lines
 
 
-def report_markdown(report: dict[str, Any]) -> str:
-    """``report.md``: settings in brief, per-start table, summary, errors."""
-    st = report["settings"]
-    lines = [
-        "# Validation: table simulation vs MuJoCo physics",
-        "",
-        f"Gait table: `{report['table']['source']}`; mode {st['mode']}, "
-        f"{st['max_steps']} steps per run; {report['summary']['starts']} starts.",
-        "",
-        "## Summary",
-        "",
-        *summary_lines(report),
-        "",
-        "## Per start",
-        "",
-        *run_rows(report),
-        "",
-    ]
+def markdown_document(
+    report: dict[str, Any], title: str, intro: str, sections: list[tuple[str, list[str]]]
+) -> str:
+    """A validation's ``report.md``: title, intro, the ``(heading, lines)`` sections, then the
+    runs' errors and the chromosome."""
+    lines = [f"# {title}", "", intro, ""]
+    for heading, body in sections:
+        lines += [f"## {heading}", "", *body, ""]
     errors = [r for r in report["runs"] if r.get("error")]
     if errors:
         lines += ["## Errors", ""]
@@ -174,4 +164,24 @@ def report_markdown(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["report_markdown", "run_rows", "summarise", "summary_lines", "write_report"]
+def report_markdown(report: dict[str, Any]) -> str:
+    """``report.md``: settings in brief, per-start table, summary, errors."""
+    st = report["settings"]
+    intro = (
+        f"Gait table: `{report['table']['source']}`; mode {st['mode']}, "
+        f"{st['max_steps']} steps per run; {report['summary']['starts']} starts."
+    )
+    return markdown_document(
+        report, "Validation: table simulation vs MuJoCo physics", intro,
+        [("Summary", summary_lines(report)), ("Per start", run_rows(report))],
+    )  # fmt: skip
+
+
+__all__ = [
+    "markdown_document",
+    "report_markdown",
+    "run_rows",
+    "summarise",
+    "summary_lines",
+    "write_report",
+]
