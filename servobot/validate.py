@@ -26,6 +26,9 @@ the sizes are checked (``validation_need``) and ``out_dir`` is taken as a run fo
 (``infra.rundir``: a lock; a folder holding a validation with other inputs is refused unless
 ``force``, which deletes only ``VALIDATION_FILES``). An interrupted run's recording is
 discarded, never left truncated at its final path.
+
+A colony of R robots sharing the station (SPEC §7) is ``servobot.colony_validate``, which
+runs through this module's ``execute`` and ``run_both_worlds``.
 """
 
 from __future__ import annotations

@@ -95,7 +95,7 @@ class ArenaSettings:
     only, never with their own robot, the arena, or the other robots' legs and probes. Two
     robots therefore touch only bumper to bumper, centres two radii apart, as the table
     world's discs. A sphere at the torso centre pushes through the torso, level: a vertical
-    cylinder spanning the rays' height pitched a pushing robot up by 19°, the sphere 10°."""
+    cylinder spanning the rays' height pitched a pushing robot up by 19°, the sphere 10–12°."""
     colours: dict[str, tuple[float, float, float, float]] = field(
         default_factory=lambda: {
             "floor": (0.82, 0.80, 0.75, 1.0),
@@ -407,6 +407,7 @@ def warnings_raised(data: mujoco.MjData) -> dict[str, int]:
 
 __all__ = [
     "BUMPER",
+    "SHELL",
     "ArenaModel",
     "ArenaSettings",
     "RobotSpec",
