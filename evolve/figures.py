@@ -230,6 +230,20 @@ def _draw_track(
              color=start_colour, zorder=7)  # fmt: skip
 
 
+def draw_colony_robot(
+    ax: Any, i: int, track: np.ndarray, label: str, end: int, disc_radius: float
+) -> None:
+    """Colony robot ``i``'s track (rows x, y, heading) in its colour (``ROBOT_COLOURS``),
+    its start and heading, its end (a square when it lived to its step limit, an × when it
+    ended early) and its final disc."""
+    c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
+    track = np.asarray(track, dtype=float)
+    marker = "s" if end == END_STEP_LIMIT else "X"
+    _draw_track(ax, track, c, label, c, c, float(track[0, 2]), marker)
+    ax.add_patch(patches.Circle(tuple(track[-1, :2]), disc_radius, fill=False, ec=c, lw=1.0,
+                                zorder=7))  # fmt: skip
+
+
 def run_colony_track(
     chromosome: np.ndarray,
     *,
@@ -269,13 +283,8 @@ def colony_figure10(
     draw_arena(ax, world, reached=frozenset(res.reached))
     robots = []
     for i, r in enumerate(res.robots):
-        c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
-        marker = "s" if r.end == END_STEP_LIMIT else "X"
         label = f"robot {i}: {r.squares} sq, {r.docks} docks, {_end_name(r.end)}"
-        _draw_track(ax, r.track, c, label, c, c, float(starts[i][2]), marker)
-        x, y = r.final_pose[:2]
-        ax.add_patch(patches.Circle((x, y), colony.disc_radius, fill=False, ec=c, lw=1.0,
-                                    zorder=7))  # fmt: skip
+        draw_colony_robot(ax, i, r.track, label, r.end, colony.disc_radius)
         robots.append(
             {"robot": i, **_run_info(r), "collisions": int(r.collisions),
              "station_waits": int(r.station_waits)}
@@ -343,6 +352,7 @@ def figure10(
 
 __all__ = [
     "colony_figure10",
+    "draw_colony_robot",
     "draw_arena",
     "figure8",
     "figure9",

@@ -26,6 +26,9 @@ the sizes are checked (``validation_need``) and ``out_dir`` is taken as a run fo
 (``infra.rundir``: a lock; a folder holding a validation with other inputs is refused unless
 ``force``, which deletes only ``VALIDATION_FILES``). An interrupted run's recording is
 discarded, never left truncated at its final path.
+
+A colony of R robots sharing the station (SPEC §7) is ``servobot.colony_validate``, which
+runs through this module's ``execute`` and ``run_both_worlds``.
 """
 
 from __future__ import annotations
@@ -58,7 +61,7 @@ from servobot.validation_report import summarise, write_report
 
 MODE = "coverage"
 """Validation runs the full controller in coverage mode (SPEC §5)."""
-VALIDATION_FILES = ("report.json", "report.md", "tracks.npz", "run*.rrd")
+VALIDATION_FILES = ("report.json", "report.md", "tracks.npz", "tracks*.png", "run*.rrd")
 """What a validation writes into its folder besides ``settings.json``."""
 RRD_BYTES_PER_STEP = 8000
 """Disk space a recording takes per controller step, bytes [measured: 3.5–4 MB / 600]."""
@@ -196,53 +199,66 @@ def run_start(job: StartJob) -> dict[str, Any]:
     from servo_mj.world.physics_world import PhysicsWorld
 
     x, y, h = job.start
-    out: dict[str, Any] = {
-        "index": job.index,
-        "start": {"x": x, "y": y, "h": h},
-        "table": None,
-        "physics": None,
-        "error": None,
-    }
     rec = None
     if job.rrd_path is not None:
         from servobot.recording import RunRecorder
 
         rec = RunRecorder.for_validation(job)
-    tracks: dict[str, np.ndarray] = {}
-    try:
+
+    def table_run() -> tuple[dict[str, Any], np.ndarray]:
         t0 = time.perf_counter()
         table_world = TableWorld(job.table, x, y, h, job.world)
-        on_table = None if rec is None else rec.table_event
         res = run(
-            job.bits, table_world, mode=MODE, settings=job.world,
-            max_steps=job.max_steps, on_event=on_table,
+            job.bits, table_world, mode=MODE, settings=job.world, max_steps=job.max_steps,
+            on_event=None if rec is None else rec.table_event,
         )  # fmt: skip
-        out["table"] = _record(res, time.perf_counter() - t0)
-        tracks["table"] = res.track
+        return _record(res, time.perf_counter() - t0), res.track
 
-        last: dict[str, Any] = {"steps": 0, "squares": 0, "pose": [x, y, h]}
+    def physics_run(last: dict[str, Any]) -> tuple[dict[str, Any], np.ndarray]:
+        t0 = time.perf_counter()
+        pw = PhysicsWorld(
+            x, y, h, world=job.world, arena=job.arena, physics=job.physics,
+            robot=None if job.model is None else default_robot(job.model),
+            rng=np.random.default_rng((job.seed, job.index)),
+            on_frame=None if rec is None else rec.on_frame,
+        )  # fmt: skip
+        if rec is not None:
+            rec.attach_physics(pw)
+
+        def on_physics(e: Any) -> None:
+            last.update(steps=e.step, squares=e.squares, pose=[float(v) for v in e.pose])
+            if rec is not None:
+                rec.physics_event(e)
+
+        res = run(
+            job.bits, pw, mode=MODE, settings=job.world, max_steps=job.max_steps,
+            on_event=on_physics,
+        )  # fmt: skip
+        return _record(res, time.perf_counter() - t0), res.track
+
+    out = {"index": job.index, "start": start_record(job.start)}
+    last = {"steps": 0, "squares": 0, "pose": [x, y, h]}
+    return run_both_worlds(out, rec, table_run, physics_run, last)
+
+
+def run_both_worlds(
+    out: dict[str, Any],
+    rec: Any,
+    table_run: Callable[[], tuple[dict[str, Any], np.ndarray]],
+    physics_run: Callable[[dict[str, Any]], tuple[dict[str, Any], np.ndarray]],
+    last: dict[str, Any],
+) -> dict[str, Any]:
+    """One run's record ``out`` completed by both worlds: ``table_run()`` and
+    ``physics_run(last)`` each give (record, track); a physics failure becomes ``error`` and
+    ``physics_partial`` (``last``, which ``physics_run`` keeps up to date). ``rec`` (a
+    recorder or None) is closed with the record, or discarded when the run is interrupted."""
+    out.update(table=None, physics=None, error=None)
+    tracks: dict[str, np.ndarray] = {}
+    try:
+        out["table"], tracks["table"] = table_run()
         t0 = time.perf_counter()
         try:
-            pw = PhysicsWorld(
-                x, y, h, world=job.world, arena=job.arena, physics=job.physics,
-                robot=None if job.model is None else default_robot(job.model),
-                rng=np.random.default_rng((job.seed, job.index)),
-                on_frame=None if rec is None else rec.on_frame,
-            )  # fmt: skip
-            if rec is not None:
-                rec.attach_physics(pw)
-
-            def on_physics(e: Any) -> None:
-                last.update(steps=e.step, squares=e.squares, pose=[float(v) for v in e.pose])
-                if rec is not None:
-                    rec.physics_event(e)
-
-            res = run(
-                job.bits, pw, mode=MODE, settings=job.world,
-                max_steps=job.max_steps, on_event=on_physics,
-            )  # fmt: skip
-            out["physics"] = _record(res, time.perf_counter() - t0)
-            tracks["physics"] = res.track
+            out["physics"], tracks["physics"] = physics_run(last)
         except Exception as exc:  # noqa: BLE001 - a physics failure is this run's record
             out["error"] = f"{type(exc).__name__}: {exc}"
             out["physics_partial"] = dict(last, wall_s=round(time.perf_counter() - t0, 4))
@@ -258,13 +274,13 @@ def run_start(job: StartJob) -> dict[str, Any]:
     return out
 
 
-def _jsonable(obj: Any) -> Any:
+def jsonable(obj: Any) -> Any:
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return _jsonable(dataclasses.asdict(obj))
+        return jsonable(dataclasses.asdict(obj))
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, np.generic):
@@ -293,7 +309,7 @@ def validation_need(starts: int, steps: int, workers: int | None, rrd: bool) -> 
     return Need(memory, wall), (starts * (steps + 1) * RRD_BYTES_PER_STEP if rrd else 0)
 
 
-def _check_sizes(n: int, steps: int, workers: int | None, rrd: bool, seed: int) -> int:
+def check_sizes(n: int, steps: int, workers: int | None, rrd: bool, seed: int) -> int:
     """Seed, worker count, memory and time, before any run; returns the recordings' bytes."""
     check_int(seed, "seed", lo=0)
     if workers is not None:
@@ -303,17 +319,32 @@ def _check_sizes(n: int, steps: int, workers: int | None, rrd: bool, seed: int) 
     return disk
 
 
+def start_record(start: Any) -> Any:
+    """A start pose (x, y, h) as ``{"x", "y", "h"}``; a colony's poses as a list of those."""
+    if np.ndim(start) == 2:
+        return [start_record(p) for p in start]
+    x, y, h = start
+    return {"x": x, "y": y, "h": h}
+
+
+Record = dict[str, Any]
+Summary = Callable[[list[Record], float], dict[str, Any]]
+"""Summary of a validation's runs, given the runs and their wall time."""
+Writer = Callable[[Path, dict[str, Any], dict[str, np.ndarray]], None]
+"""Writes a finished validation's files: (folder, report, tracks by ``{world}_{index}``)."""
+
+
 def _run_jobs(
-    ex: Executor, jobs: list[StartJob], on_run: Callable[[dict[str, Any]], None] | None
-) -> list[dict[str, Any]]:
+    ex: Executor, jobs: list[Any], work: Callable[[Any], Record],
+    on_run: Callable[[Record], None] | None,
+) -> list[Record]:  # fmt: skip
     """Every job's record in start order; a worker that failed gives a record with its error."""
-    runs: list[dict[str, Any]] = [{} for _ in jobs]
-    with contextlib.closing(ex.imap(run_start, jobs)) as outcomes:  # stops workers on Ctrl-C
+    runs: list[Record] = [{} for _ in jobs]
+    with contextlib.closing(ex.imap(work, jobs)) as outcomes:  # stops workers on Ctrl-C
         for k, outcome in outcomes:
             if isinstance(outcome, Failed):
-                x, y, h = jobs[k].start
-                rec: dict[str, Any] = {
-                    "index": k, "start": {"x": x, "y": y, "h": h}, "table": None,
+                rec: Record = {
+                    "index": k, "start": start_record(jobs[k].start), "table": None,
                     "physics": None, "error": outcome.message, "tracks": {},
                 }  # fmt: skip
             else:
@@ -322,6 +353,74 @@ def _run_jobs(
             if on_run is not None:
                 on_run(rec)
     return runs
+
+
+def validation_settings(
+    world: WorldSettings, arena: ArenaSettings, physics: Any, steps: int, seed: int,
+    model: ModelFile,
+) -> dict[str, Any]:  # fmt: skip
+    """The settings a validation's results depend on (``settings.json``, the report)."""
+    return {
+        "WorldSettings": jsonable(world),
+        "ArenaSettings": jsonable(arena),
+        "PhysicsSettings": jsonable(physics) if physics is not None else "default",
+        "max_steps": steps,
+        "seed": seed,
+        "mode": MODE,
+        "model": model_label(model),
+        "model_sha256": model_sha256(model),
+    }
+
+
+def report_head(
+    arr: np.ndarray, table: Any, values: np.ndarray, settings: dict[str, Any],
+    meta: dict[str, Any] | None,
+) -> dict[str, Any]:  # fmt: skip
+    """What a report holds besides its runs and summary."""
+    return {
+        "chromosome": format_chromosome(arr),
+        "table": {
+            "source": getattr(table, "source", "array"),
+            "values": values.tolist(),
+            "meta": jsonable(getattr(table, "meta", {})),
+        },
+        "settings": settings,
+        "meta": jsonable(meta or {}),
+    }
+
+
+def execute(
+    jobs: list[Any],
+    work: Callable[[Any], Record],
+    *,
+    ex: Executor,
+    head: dict[str, Any],
+    summary: Summary,
+    write: Writer,
+    out: Path | None,
+    record: dict[str, Any],
+    disk: int,
+    force: bool,
+    on_run: Callable[[Record], None] | None,
+) -> dict[str, Any]:
+    """Run the jobs (``work(job)`` each, on ``ex``) and return the report; with ``out``, in
+    that run folder (``record`` its ownership record; ``disk`` the recordings' bytes) and
+    written there by ``write``."""
+
+    def run_all() -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        t0 = time.perf_counter()
+        runs = _run_jobs(ex, jobs, work, on_run)
+        wall = time.perf_counter() - t0
+        tracks = {f"{w}_{r['index']}": t for r in runs for w, t in r.pop("tracks", {}).items()}
+        return head | {"runs": runs, "summary": summary(runs, wall)}, tracks
+
+    if out is None:
+        return run_all()[0]
+    with run_folder(out, record, owned=VALIDATION_FILES, resumable=False, force=force):
+        check_free_space(out, disk, what="the recordings")
+        report, tracks = run_all()
+        write(out, report, tracks)
+    return report
 
 
 def validate(
@@ -361,24 +460,9 @@ def validate(
     arr = check_chromosome(bits)
     values = validate_table(getattr(table, "values", table))
     poses = check_starts(starts, world, arena)
-    if max_steps is not None and max_steps < 0:
-        raise ValidationError(f"max_steps must be >= 0, got {max_steps}")
-    if model is not None and not Path(model).is_file():
-        raise ValidationError(f"robot model {model}: no such file")
-    out = None if out_dir is None else Path(out_dir)
-    rrd = rrd and out is not None
-    steps = max_steps if max_steps is not None else world.coverage_steps
-    disk = _check_sizes(len(poses), steps, None if executor else workers, rrd, seed)
-    settings = {
-        "WorldSettings": _jsonable(world),
-        "ArenaSettings": _jsonable(arena),
-        "PhysicsSettings": _jsonable(physics) if physics is not None else "default",
-        "max_steps": steps,
-        "seed": seed,
-        "mode": MODE,
-        "model": model_label(model),
-        "model_sha256": model_sha256(model),
-    }
+    steps, out, rrd = check_run_options(max_steps, model, world, out_dir, rrd)
+    disk = check_sizes(len(poses), steps, None if executor else workers, rrd, seed)
+    settings = validation_settings(world, arena, physics, steps, seed, model)
     jobs = [
         StartJob(
             index=k,
@@ -391,45 +475,32 @@ def validate(
             max_steps=max_steps,
             seed=seed,
             model=None if model is None else str(model),
-            rrd_path=str(out / f"run{k}.rrd") if rrd else None,
+            rrd_path=str(out / f"run{k}.rrd") if rrd and out else None,
         )  # fmt: skip
         for k, p in enumerate(poses)
     ]
-    head = {
-        "chromosome": format_chromosome(arr),
-        "table": {
-            "source": getattr(table, "source", "array"),
-            "values": values.tolist(),
-            "meta": _jsonable(getattr(table, "meta", {})),
-        },
-        "settings": settings,
-        "meta": _jsonable(meta or {}),
-    }
-    ex = executor or make_executor(None, workers)
-    if out is None:
-        return _run_all(jobs, ex, on_run, head, world)[0]
+    head = report_head(arr, table, values, settings, meta)
     record = {"chromosome": head["chromosome"], "table": head["table"]["values"],
               "starts": [list(p) for p in poses], "settings": settings, "rrd": rrd}  # fmt: skip
-    with run_folder(out, record, owned=VALIDATION_FILES, resumable=False, force=force):
-        check_free_space(out, disk, what="the recordings")
-        report, tracks = _run_all(jobs, ex, on_run, head, world)
-        write_report(out, report, tracks)
-    return report
+    return execute(
+        jobs, run_start, ex=executor or make_executor(None, workers), head=head,
+        summary=lambda runs, wall: summarise(runs, world, wall), write=write_report, out=out,
+        record=record, disk=disk, force=force, on_run=on_run,
+    )  # fmt: skip
 
 
-def _run_all(
-    jobs: list[StartJob],
-    ex: Executor,
-    on_run: Callable[[dict[str, Any]], None] | None,
-    head: dict[str, Any],
-    world: WorldSettings,
-) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """The report (``head`` + runs + summary) and the tracks by ``{world}_{index}``."""
-    t0 = time.perf_counter()
-    runs = _run_jobs(ex, jobs, on_run)
-    wall = time.perf_counter() - t0
-    tracks = {f"{w}_{r['index']}": t for r in runs for w, t in r.pop("tracks", {}).items()}
-    return head | {"runs": runs, "summary": summarise(runs, world, wall)}, tracks
+def check_run_options(
+    max_steps: int | None, model: ModelFile, world: WorldSettings, out_dir: Any, rrd: bool
+) -> tuple[int, Path | None, bool]:
+    """(steps per run, output folder or None, whether recordings are written), or
+    ``ValidationError`` for a negative step count or a missing model file."""
+    if max_steps is not None and max_steps < 0:
+        raise ValidationError(f"max_steps must be >= 0, got {max_steps}")
+    if model is not None and not Path(model).is_file():
+        raise ValidationError(f"robot model {model}: no such file")
+    out = None if out_dir is None else Path(out_dir)
+    steps = max_steps if max_steps is not None else world.coverage_steps
+    return steps, out, rrd and out is not None
 
 
 __all__ = [
@@ -438,9 +509,17 @@ __all__ = [
     "StartJob",
     "ValidationError",
     "check_chromosome",
+    "check_run_options",
+    "check_sizes",
     "check_start",
+    "execute",
+    "jsonable",
     "load_checked_table",
+    "report_head",
+    "run_both_worlds",
     "run_start",
+    "start_record",
     "validate",
     "validation_need",
+    "validation_settings",
 ]

@@ -73,8 +73,11 @@ def summarise(runs: list[dict[str, Any]], world: WorldSettings, wall_s: float) -
     }
 
 
-def write_report(out: Path, report: dict[str, Any], tracks: dict[str, np.ndarray]) -> None:
-    """Write ``report.json``, ``report.md`` and ``tracks.npz`` atomically into ``out``."""
+def write_report(
+    out: Path, report: dict[str, Any], tracks: dict[str, np.ndarray], markdown: str | None = None
+) -> None:
+    """Write ``report.json``, ``report.md`` (``markdown``, default ``report_markdown``) and
+    ``tracks.npz`` atomically into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
 
     def write_npz(p: Path) -> None:
@@ -84,7 +87,7 @@ def write_report(out: Path, report: dict[str, Any], tracks: dict[str, np.ndarray
 
     atomic_write(out / "tracks.npz", write_npz)
     atomic_write_json(out / "report.json", report)
-    atomic_write_text(out / "report.md", report_markdown(report))
+    atomic_write_text(out / "report.md", report_markdown(report) if markdown is None else markdown)
 
 
 def _cell(rec: dict[str, Any] | None) -> str:
@@ -144,24 +147,14 @@ def summary_lines(report: dict[str, Any]) -> list[str]:
     return lines
 
 
-def report_markdown(report: dict[str, Any]) -> str:
-    """``report.md``: settings in brief, per-start table, summary, errors."""
-    st = report["settings"]
-    lines = [
-        "# Validation: table simulation vs MuJoCo physics",
-        "",
-        f"Gait table: `{report['table']['source']}`; mode {st['mode']}, "
-        f"{st['max_steps']} steps per run; {report['summary']['starts']} starts.",
-        "",
-        "## Summary",
-        "",
-        *summary_lines(report),
-        "",
-        "## Per start",
-        "",
-        *run_rows(report),
-        "",
-    ]
+def markdown_document(
+    report: dict[str, Any], title: str, intro: str, sections: list[tuple[str, list[str]]]
+) -> str:
+    """A validation's ``report.md``: title, intro, the ``(heading, lines)`` sections, then the
+    runs' errors and the chromosome."""
+    lines = [f"# {title}", "", intro, ""]
+    for heading, body in sections:
+        lines += [f"## {heading}", "", *body, ""]
     errors = [r for r in report["runs"] if r.get("error")]
     if errors:
         lines += ["## Errors", ""]
@@ -171,4 +164,24 @@ def report_markdown(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["report_markdown", "run_rows", "summarise", "summary_lines", "write_report"]
+def report_markdown(report: dict[str, Any]) -> str:
+    """``report.md``: settings in brief, per-start table, summary, errors."""
+    st = report["settings"]
+    intro = (
+        f"Gait table: `{report['table']['source']}`; mode {st['mode']}, "
+        f"{st['max_steps']} steps per run; {report['summary']['starts']} starts."
+    )
+    return markdown_document(
+        report, "Validation: table simulation vs MuJoCo physics", intro,
+        [("Summary", summary_lines(report)), ("Per start", run_rows(report))],
+    )  # fmt: skip
+
+
+__all__ = [
+    "markdown_document",
+    "report_markdown",
+    "run_rows",
+    "summarise",
+    "summary_lines",
+    "write_report",
+]

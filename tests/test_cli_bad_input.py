@@ -144,6 +144,43 @@ CASES = {
         (["{chrom16}", "--table", "{deep_meta}"], "nested more than 64 deep"),
         (["{chrom16}", "--out", "{chrom16}"], "is a file, not a folder"),
         (["{chrom16}", "--out", "/proc/servobot-x"], "cannot write there"),
+        (["{chrom16}", "--robots", "0"], "--robots must be an integer ≥ 1, got 0"),
+        (["{chrom16}", "--robots", "-3"], "--robots must be an integer ≥ 1, got -3"),
+        (["{chrom16}", "--robots", "400"], "--robots 400: cannot place robot"),
+        (["{chrom16}", "--robots", "1000000000", "--starts", "2"], "--robots 1000000000"),
+        (["{chrom16}", "--robots", "2", "--start", "300", "300", "0"], "2 at a time"),
+        (
+            [
+                "{chrom16}",
+                "--robots",
+                "2",
+                "--start",
+                "300",
+                "300",
+                "0",
+                "--start",
+                "310",
+                "300",
+                "0",
+            ],
+            "robots 0 and 1 are 10 units apart",
+        ),  # fmt: skip
+        (
+            [
+                "{chrom16}",
+                "--robots",
+                "2",
+                "--start",
+                "300",
+                "300",
+                "0",
+                "--start",
+                "10",
+                "300",
+                "0",
+            ],
+            "start 0, robot 1: start (10, 300) lies in the kill zone",
+        ),  # fmt: skip
     ],
     "calibrate": [
         (["--params", "{dir}"], "a_folder: is a folder, not a gait-parameter file"),

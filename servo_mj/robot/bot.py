@@ -130,8 +130,13 @@ class ServoBot:
         return float(self.data.xmat[self.torso, 8])
 
     # --- placement -------------------------------------------------------------------------
-    def place(self, x_cm: float, y_cm: float, heading_deg: float) -> None:
-        """Stand the robot in its home posture at (x, y, heading), at rest, then settle."""
+    def place(self, x_cm: float, y_cm: float, heading_deg: float, *, settle: bool = True) -> None:
+        """Stand the robot in its home posture at (x, y, heading), at rest, then settle.
+
+        ``settle=False`` only puts the robot there (several robots of one model are put first
+        and then settled together with ``settle``, so that none settles while another still
+        sits where the model file put it).
+        """
         m, d = self.model, self.data
         if not all(math.isfinite(v) for v in (x_cm, y_cm, heading_deg)):
             raise ValueError(f"place: pose must be finite, got {(x_cm, y_cm, heading_deg)}")
@@ -152,6 +157,13 @@ class ServoBot:
         d.qpos[q] += x_cm / CM_PER_M - torso[0]
         d.qpos[q + 1] += y_cm / CM_PER_M - torso[1]
         d.qpos[q + 2] += self.physics.floor_z_m + self.physics.drop_clearance_m - lowest
+        if settle:
+            self.settle()
+
+    def settle(self) -> None:
+        """Stand ``PhysicsSettings.settle_s`` in the current posture (every robot of the model
+        steps), then the fault checks."""
+        m, d = self.model, self.data
         mujoco.mj_forward(m, d)
         self._clear_warnings()
         n = round(self.physics.settle_s / self.physics.timestep_s)

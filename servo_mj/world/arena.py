@@ -12,6 +12,12 @@ robot's own free joint is removed and the torso's placement moved onto the frame
 frame's free-joint qpos means what the robot's did (keyframes stay valid). The object-sensor
 rangefinder fans (``servo_mj.world.sensors``) are added to the torso before attaching.
 
+A colony arena (``build_arena(..., colony=ColonySettings(...))``, SPEC §7) holds R robots,
+attached as ``servobot0/`` … ``servobot{R-1}/``, each with a bumper (a sphere that collides
+with the other robots' bumpers only) and a shell (a cylinder that the other robots'
+rangefinders see), both of the table world's disc radius; see ``ArenaSettings``. A lone
+robot's arena (``colony`` None) has neither and is what it always was.
+
 Physics options (timestep, integrator, friction cone, solver, ...) and the floor's contact
 parameters are copied from the calibration scene (``models/servobot/scene.xml``) after
 compiling, so that the gaits walk in the arena as they did when the gait table was measured.
@@ -27,9 +33,14 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
-from evolve.settings import WorldSettings
+from evolve.settings import ColonySettings, WorldSettings
 from servo_mj.world import sensors as _sensors
 from servo_mj.world.sensors import CM_PER_M, ObjectSensorIndex
+
+BUMPER = "bumper"
+"""Name (unprefixed) of a colony robot's bumper geom (collisions)."""
+SHELL = "bumper_shell"
+"""Name (unprefixed) of a colony robot's shell geom (what other robots' rays see)."""
 
 
 @dataclass(frozen=True)
@@ -66,6 +77,25 @@ class ArenaSettings:
     robot_clearance_cm: float = 26.0
     """A robot centre closer than this to the station block overlaps it (probe reach 23.7 cm,
     plus a margin): such start poses are refused."""
+    shell_bottom_m: float = -0.04
+    """Colony arenas: bottom of each robot's shell in the torso frame (the torso origin
+    stands ≈ 0.06 m above the floor, so ≈ 0.02 m above it). The shell is a massless,
+    non-colliding vertical cylinder of radius ``ColonySettings.disc_radius`` (the table
+    world's disc) on the torso: what the other robots' rangefinders see of a robot."""
+    shell_top_m: float = 0.14
+    """Colony arenas: top of the shell in the torso frame (≈ 0.20 m above the floor). The
+    rangefinder rays leave 0.09 m above the torso origin; the shell reaches 0.05 m above and
+    0.13 m below them, so another robot's ray still meets it 0.5 m away (the object range)
+    when either robot pitches 5.7°, or 0.2 m away at 14° (a robot pushing another pitches
+    up to ≈ 10°)."""
+    bumper_bit: int = 4
+    """Colony arenas: ``contype`` and ``conaffinity`` of each robot's bumper — a massless
+    sphere of radius ``ColonySettings.disc_radius`` centred on the torso origin — a bit no
+    other geom uses (robot geoms 2/1, arena 1/1): bumpers collide with other robots' bumpers
+    only, never with their own robot, the arena, or the other robots' legs and probes. Two
+    robots therefore touch only bumper to bumper, centres two radii apart, as the table
+    world's discs. A sphere at the torso centre pushes through the torso, level: a vertical
+    cylinder spanning the rays' height pitched a pushing robot up by 19°, the sphere 10–12°."""
     colours: dict[str, tuple[float, float, float, float]] = field(
         default_factory=lambda: {
             "floor": (0.82, 0.80, 0.75, 1.0),
@@ -198,23 +228,49 @@ def _detach_free_joint(robot: mjcf.RootElement, spec: RobotSpec) -> mjcf.Element
     return torso
 
 
-def build_arena(
-    world: WorldSettings | None = None,
-    arena: ArenaSettings | None = None,
-    robot: RobotSpec | None = None,
-) -> mjcf.RootElement:
-    """Compose the colony arena and the robot (free joint on the attachment frame)."""
-    world = world or WorldSettings()
-    arena = arena or ArenaSettings()
-    spec = robot or default_robot()
-    root = mjcf.RootElement(model="colony")
-    add_arena(root, world, arena)
+def colony_robot_names(robots: int) -> tuple[str, ...]:
+    """MJCF model names of a colony's robots: ``servobot0`` … (their prefixes add ``/``)."""
+    from servo_mj.robot.constants import ROBOT_MODEL_NAME
+
+    return tuple(f"{ROBOT_MODEL_NAME}{i}" for i in range(robots))
+
+
+def _add_bumper(torso: mjcf.Element, radius_m: float, arena: ArenaSettings) -> None:
+    """A colony robot's bumper (a sphere that collides with other robots' bumpers only) and
+    shell (a cylinder that other robots' rangefinders see), both massless, of radius
+    ``radius_m`` (``ArenaSettings.bumper_bit``, ``shell_bottom_m``, ``shell_top_m``)."""
+    lo, hi = arena.shell_bottom_m, arena.shell_top_m
+    torso.add(
+        "geom", name=BUMPER, type="sphere", size=[radius_m], contype=arena.bumper_bit,
+        conaffinity=arena.bumper_bit, condim=1, density=0, group=3, rgba=[0.3, 0.6, 1.0, 0.1],
+    )  # fmt: skip
+    torso.add(
+        "geom", name=SHELL, type="cylinder", size=[radius_m, (hi - lo) / 2],
+        pos=[0.0, 0.0, (hi + lo) / 2], contype=0, conaffinity=0, density=0, group=3,
+        rgba=[0.3, 0.6, 1.0, 0.15],
+    )  # fmt: skip
+
+
+def _attach_robot(
+    root: mjcf.RootElement,
+    spec: RobotSpec,
+    world: WorldSettings,
+    arena: ArenaSettings,
+    *,
+    name: str | None = None,
+    bumper_m: float | None = None,
+) -> None:
+    """Attach one robot (renamed ``name`` when given; with a bumper of radius ``bumper_m``)."""
     bot = mjcf.from_path(str(spec.xml))
+    if name is not None:
+        bot.model = name
     torso = _detach_free_joint(bot, spec)
     _sensors.add_object_sensors(
         bot, spec.torso_body, world=world, n_rays=arena.rays_per_span,
         height_m=arena.sensor_height_m, forward=spec.forward_axis,
     )  # fmt: skip
+    if bumper_m is not None:
+        _add_bumper(torso, bumper_m, arena)
     # Move the torso's placement onto the frame, so the frame's free joint is the torso's.
     pos = np.zeros(3) if torso.pos is None else np.asarray(torso.pos, dtype=float)
     quat = None if torso.quat is None else np.asarray(torso.quat, dtype=float)
@@ -225,42 +281,87 @@ def build_arena(
     if quat is not None:
         frame.quat = quat
     frame.add("freejoint")
+
+
+def build_arena(
+    world: WorldSettings | None = None,
+    arena: ArenaSettings | None = None,
+    robot: RobotSpec | None = None,
+    colony: ColonySettings | None = None,
+) -> mjcf.RootElement:
+    """Compose the colony arena and the robot (free joint on the attachment frame).
+
+    ``colony`` None: one robot, as the model file names it (prefix ``servobot/``), no bumper.
+    Else ``colony.robots`` robots named by ``colony_robot_names``, each with a bumper of
+    radius ``colony.disc_radius``.
+    """
+    world = world or WorldSettings()
+    arena = arena or ArenaSettings()
+    spec = robot or default_robot()
+    root = mjcf.RootElement(model="colony")
+    add_arena(root, world, arena)
+    if colony is None:
+        _attach_robot(root, spec, world, arena)
+    else:
+        radius = colony.disc_radius / CM_PER_M
+        for name in colony_robot_names(colony.robots):
+            _attach_robot(root, spec, world, arena, name=name, bumper_m=radius)
     return root
 
 
 @dataclass
 class ArenaModel:
-    """A compiled colony: MuJoCo model and data, the robot's name prefix, sensor indices."""
+    """A compiled colony: MuJoCo model and data, each robot's name prefix and sensor indices,
+    and (colony arenas) each robot's bumper geom."""
 
     model: mujoco.MjModel
     data: mujoco.MjData
-    prefix: str
-    object_index: ObjectSensorIndex
+    prefixes: tuple[str, ...]
+    object_indices: tuple[ObjectSensorIndex, ...]
+    bumpers: np.ndarray
+    """(R,) geom id of each robot's bumper; empty for a lone robot's arena."""
     world: WorldSettings
     arena: ArenaSettings
     xml: str
+
+    @property
+    def prefix(self) -> str:
+        """Robot 0's name prefix (the lone robot's)."""
+        return self.prefixes[0]
+
+    @property
+    def object_index(self) -> ObjectSensorIndex:
+        """Robot 0's rangefinder indices (the lone robot's)."""
+        return self.object_indices[0]
 
 
 def compile_arena(
     world: WorldSettings | None = None,
     arena: ArenaSettings | None = None,
     robot: RobotSpec | None = None,
+    colony: ColonySettings | None = None,
 ) -> ArenaModel:
-    """Build and compile the colony; returns model, data and the robot's prefix."""
+    """Build and compile the arena (``build_arena``); returns model, data, prefixes."""
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
     spec = robot or default_robot()
-    root = build_arena(world, arena, spec)
+    root = build_arena(world, arena, spec, colony)
     xml = root.to_xml_string()
     model = mujoco.MjModel.from_xml_string(xml, root.get_assets())
     if spec.scene_xml is not None:
         match_scene(model, mujoco.MjModel.from_xml_path(str(spec.scene_xml)))
     _sensors.sensors_on_demand(model)
     data = mujoco.MjData(model)
-    prefix = _robot_prefix(root)
+    if colony is None:
+        prefixes: tuple[str, ...] = (_robot_prefix(root),)
+        bumpers = np.zeros(0, dtype=np.int64)
+    else:
+        prefixes = tuple(name + "/" for name in colony_robot_names(colony.robots))
+        bumpers = np.array([model.geom(p + BUMPER).id for p in prefixes], dtype=np.int64)
     mujoco.mj_forward(model, data)
-    index = ObjectSensorIndex.from_model(model, prefix, arena.rays_per_span)
-    return ArenaModel(model, data, prefix, index, world, arena, xml)
+    n = arena.rays_per_span
+    index = tuple(ObjectSensorIndex.from_model(model, p, n) for p in prefixes)
+    return ArenaModel(model, data, prefixes, index, bumpers, world, arena, xml)
 
 
 SCENE_FLOOR = "floor"
@@ -305,11 +406,14 @@ def warnings_raised(data: mujoco.MjData) -> dict[str, int]:
 
 
 __all__ = [
+    "BUMPER",
+    "SHELL",
     "ArenaModel",
     "ArenaSettings",
     "RobotSpec",
     "add_arena",
     "build_arena",
+    "colony_robot_names",
     "compile_arena",
     "default_robot",
     "match_scene",

@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 
 from evolve import geometry
-from evolve.settings import WorldSettings
+from evolve.settings import ColonySettings, WorldSettings
 from servo_mj.robot.bot import ServoBot
 from servo_mj.robot.constants import CM_PER_M
 from servo_mj.world.arena import ArenaModel, ArenaSettings, RobotSpec, compile_arena
@@ -36,16 +36,22 @@ def colony(
     world: WorldSettings | None = None,
     arena: ArenaSettings | None = None,
     robot: RobotSpec | None = None,
+    colony_settings: ColonySettings | None = None,
 ) -> ArenaModel:
-    """The compiled colony for these settings, compiled once per process and reused.
+    """The compiled arena for these settings, compiled once per process and reused: one robot
+    (``colony_settings`` None), or ``colony_settings.robots`` robots with bumpers.
 
-    Each ``PhysicsWorld`` makes its own ``MjData``, so runs never share state.
+    Each ``PhysicsWorld`` (``PhysicsColony``) makes its own ``MjData``, so runs never share
+    state.
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
-    key = (repr(world), repr(arena), repr(robot))
+    robots = None
+    if colony_settings is not None:  # only these two shape the model
+        robots = (colony_settings.robots, colony_settings.disc_radius)
+    key = (repr(world), repr(arena), repr(robot), robots)
     if key not in _CACHE:
-        _CACHE[key] = compile_arena(world, arena, robot)
+        _CACHE[key] = compile_arena(world, arena, robot, colony_settings)
     return _CACHE[key]
 
 

@@ -2,7 +2,10 @@
 
 Runs the 16-gene chromosome from N start poses (SPEC §5 coverage region, seeded) or from the
 given ``--start X Y H`` poses, in both worlds, and writes ``report.json``, ``report.md``,
-``tracks.npz`` (and ``run{k}.rrd`` with ``--rrd``) into ``--out``. Prints the per-start table
+``tracks.npz`` (and ``run{k}.rrd`` with ``--rrd``) into ``--out``. With ``--robots R`` each
+start is a colony of R robots sharing the station (SPEC §7): N colony starts drawn by
+``evolve.starts.colony_starts``, or the ``--start`` poses taken R at a time; it also writes
+``tracks{k}.png`` (``servobot.colony_validate``). Prints the per-start table
 and the summary. Exit status: 0 = all runs finished, 1 = some physics runs failed (their
 errors are in the report), 2 = bad input (message names the problem; checked before any
 run), 130 = interrupted (``servobot.cli.runner``). ``--force`` replaces a validation made
@@ -22,8 +25,8 @@ import numpy as np
 from tqdm import tqdm
 
 from evolve.codec import ChromosomeError, read_chromosome
-from evolve.settings import WorldSettings
-from evolve.starts import coverage_starts
+from evolve.settings import ColonySettings, WorldSettings
+from evolve.starts import colony_starts, coverage_starts
 from infra.bounds import check_int, check_need, check_number
 from infra.errors import InputError
 from servo_mj.robot.gaits import MAX_TARGET_RAD
@@ -31,6 +34,8 @@ from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings
 from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.cli.runner import EXIT_FAILED, Interrupted, command_line, run_command
+from servobot.colony_report import colony_run_rows, colony_summary_lines
+from servobot.colony_validate import check_colony_starts, validate_colony
 from servobot.validate import (
     ValidationError,
     check_chromosome,
@@ -71,6 +76,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         action="append",
         metavar=("X", "Y", "H"),
         help="a start pose (cm, cm, deg); repeatable; replaces --starts",
+    )
+    p.add_argument(
+        "--robots",
+        type=int,
+        default=None,
+        metavar="R",
+        help="a colony of R robots sharing the station at each start (SPEC §7); --start poses "
+        "are then taken R at a time (default: one robot, no colony)",
     )
     p.add_argument(
         "--seed", type=int, default=0, help="seed of the start poses and servo noise (default 0)"
@@ -143,32 +156,67 @@ def _check_options(args: argparse.Namespace, n_starts: int) -> None:
         check_int(args.steps, "--steps", lo=0)
     if args.station_height is not None:
         check_number(args.station_height, "--station-height", lo=0.01, hi=10.0, unit=" m")
+    robots = args.robots or 1
     steps = WorldSettings().coverage_steps if args.steps is None else args.steps
-    check_need(validation_need(n_starts, steps, args.workers, args.rrd)[0],
-               f"--starts {n_starts} × --steps {steps}")  # fmt: skip
+    check_need(validation_need(n_starts, steps * robots, args.workers, args.rrd)[0],
+               f"--starts {n_starts} × --steps {steps} × --robots {robots}")  # fmt: skip
 
 
-def prepare(args: argparse.Namespace, world: WorldSettings) -> tuple[np.ndarray, np.ndarray]:
-    """Read the chromosome and build the start poses; ``InputError`` on bad input."""
+def _colony(args: argparse.Namespace) -> ColonySettings | None:
+    """The colony of ``--robots`` (None without it)."""
+    if args.robots is None:
+        return None
+    check_int(args.robots, "--robots", lo=1)
+    return ColonySettings(robots=args.robots)
+
+
+def _given_starts(args: argparse.Namespace, colony: ColonySettings | None) -> np.ndarray:
+    """The ``--start`` poses: (N, 3), or (N, R, 3) taken R at a time for a colony."""
+    starts = np.array(args.start, dtype=float)
+    if colony is None:
+        return starts
+    if len(starts) % colony.robots:
+        raise InputError(
+            f"--robots {colony.robots}: give the --start poses {colony.robots} at a time (one "
+            f"pose per robot of each colony start), got {len(starts)}"
+        )
+    return starts.reshape(-1, colony.robots, 3)
+
+
+def prepare(
+    args: argparse.Namespace, world: WorldSettings
+) -> tuple[np.ndarray, np.ndarray, ColonySettings | None]:
+    """Read the chromosome and build the start poses ((N, 3), or (N, R, 3) with ``--robots``)
+    and the colony; ``InputError`` on bad input."""
+    colony = _colony(args)
     if not args.start:
         check_int(args.starts, "--starts", lo=1)
-    _check_options(args, len(args.start) if args.start else args.starts)
+    n = len(args.start) // (colony.robots if colony else 1) if args.start else args.starts
+    _check_options(args, max(n, 1))
     try:
         bits = check_chromosome(read_chromosome(args.chromosome))
     except (ChromosomeError, ValidationError) as exc:
         raise InputError(f"chromosome: {exc}") from exc
     if args.start:
-        starts = np.array(args.start, dtype=float)
-    else:
+        starts = _given_starts(args, colony)
+    elif colony is None:
         starts = coverage_starts(np.random.default_rng(args.seed), args.starts, world)
-    for k, s in enumerate(starts):
-        check_start(s, world, name=f"start {k} ({s[0]:g} {s[1]:g} {s[2]:g})")
-    return bits, starts
+    else:
+        try:
+            starts = colony_starts(np.random.default_rng(args.seed), args.starts, world, colony)
+        except ValueError as exc:
+            raise InputError(f"--robots {colony.robots}: {exc}") from exc
+    if colony is None:
+        for k, s in enumerate(starts):
+            check_start(s, world, name=f"start {k} ({s[0]:g} {s[1]:g} {s[2]:g})")
+    else:
+        check_colony_starts(starts, world, ArenaSettings(), colony)
+    return bits, starts, colony
 
 
 def _run(args: argparse.Namespace, command: str) -> int:
     world = WorldSettings()
-    bits, starts = prepare(args, world)
+    bits, starts, colony = prepare(args, world)
     table, warning = load_checked_table(args.table, args.model)
     if warning:
         print(warning, file=sys.stderr)
@@ -184,8 +232,9 @@ def _run(args: argparse.Namespace, command: str) -> int:
         if rec.get("error"):
             bar.write(f"run {rec['index']}: {rec['error']}")
 
+    kwargs: dict[str, Any] = {} if colony is None else {"colony": colony}
     try:
-        report = validate(
+        report = (validate if colony is None else validate_colony)(
             bits,
             starts,
             table=table,
@@ -202,12 +251,16 @@ def _run(args: argparse.Namespace, command: str) -> int:
             on_run=on_run,
             meta={"chromosome_file": str(args.chromosome), "seed": args.seed, "command": command},
             force=args.force,
+            **kwargs,
         )
     finally:
         bar.close()
-    print("\n".join(run_rows(report)))
+    rows, lines = (run_rows, summary_lines)
+    if colony is not None:
+        rows, lines = colony_run_rows, colony_summary_lines
+    print("\n".join(rows(report)))
     print()
-    print("\n".join(summary_lines(report)))
+    print("\n".join(lines(report)))
     print(f"\nwrote {args.out / 'report.json'}, {args.out / 'report.md'}")
     return EXIT_FAILED if report["summary"]["physics_errors"] else 0
 

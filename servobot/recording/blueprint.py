@@ -5,6 +5,7 @@ tracks, reached squares and feet drawn from the start to the cursor (per-entity 
 ranges, so they draw trails while the robot, its contacts, rays and sensor spans show only the
 current state). Right: tabs of time series — ``run`` (power, sensors and mode, squares, pose),
 ``joints`` (servo target vs angle per leg), ``body`` (torso roll and pitch, foot forces),
+``colony`` (station occupancy and each robot's state as lanes, waits and blocked moves),
 ``calibration`` (F, T, dH per cycle) — above the text log. The blueprint, selection and time
 panels open expanded, the time panel on ``sim_time`` when the recording has it.
 """
@@ -35,6 +36,8 @@ class Contents:
     feet: list[str] = field(default_factory=list)
     """Robots whose feet were recorded."""
     calibration: bool = False
+    colony: bool = False
+    """Whether station occupancy and robot states were recorded (``colony/…``)."""
     scene: tuple[tuple[float, float], tuple[float, float]] | None = None
     """Floor extent ((x0, y0), (x1, y1)) in metres, for the initial camera."""
 
@@ -91,6 +94,15 @@ def _tabs(c: Contents) -> list[Any]:
                 ts(origin=f"plots/attitude/{r}", name=f"torso roll, pitch (deg), {r}"),
                 ts(origin=f"plots/foot_force/{r}", name=f"foot normal force (N), {r}"),
                 name="body",
+            )
+        )
+    if c.colony:
+        tabs.append(
+            rrb.Vertical(
+                rrb.StateTimelineView(origin="colony", name="station and robots"),
+                ts(origin="plots/colony", name="station waits, blocked moves (so far)"),
+                name="colony",
+                row_shares=[2, 1],
             )
         )
     if c.calibration:

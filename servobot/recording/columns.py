@@ -1,7 +1,8 @@
 """Column buffers: rows gathered in Python lists, sent to rerun as columns (``send_columns``).
 
 Timelines: ``sim_time`` (duration, seconds of simulated time) and the sequences ``step``
-(interpreter gait steps) and ``cycle`` (gait cycles of a calibration walk). Every row of one
+(interpreter gait steps), ``colony_step`` (colony steps, SPEC §7) and ``cycle`` (gait cycles
+of a calibration walk). Every row of one
 buffer carries the same timelines; a buffer refuses a row with another set.
 """
 

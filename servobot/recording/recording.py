@@ -148,6 +148,11 @@ class Recording:
             self.contents.robots.append(robot)
         self.contents.detail = self.settings.servo_detail
 
+    def set_robot_color(self, robot: str, color: Rgb) -> None:
+        """Give ``robot``'s tracks, squares and poses ``color`` (lighter for a non-physics
+        world) before any of its events (``log_robot_model(color=...)`` does it too)."""
+        self._colors[robot] = color
+
     def _robot(self, robot: str) -> RobotRecorder:
         if robot not in self._robots:
             raise ValueError(f"robot {robot!r}: call log_robot_model before logging its state")
@@ -155,12 +160,13 @@ class Recording:
 
     def log_robot_state(
         self, data: Any, *, t_s: float, step: int | None = None, cycle: int | None = None,
-        robot: str = DEFAULT_ROBOT,
+        robot: str = DEFAULT_ROBOT, colony_step: int | None = None,
     ) -> None:  # fmt: skip
         """Buffer one servo frame of ``robot`` at simulated time ``t_s`` (s), with the
-        interpreter ``step`` or calibration ``cycle`` it belongs to when given."""
+        interpreter ``step``, calibration ``cycle`` or ``colony_step`` it belongs to when
+        given."""
         r = self._robot(robot)
-        times = times_of(t_s, step=step, cycle=cycle)
+        times = times_of(t_s, step=step, cycle=cycle, colony_step=colony_step)
         r.add_frame(data.model, data, times)
         self._timelines(times)
         if r.frames.n >= self.settings.max_buffer_rows:
@@ -182,13 +188,14 @@ class Recording:
 
     def log_rays(
         self, data: Any, left_m: np.ndarray, right_m: np.ndarray, *, t_s: float, step: int,
-        robot: str = DEFAULT_ROBOT,
+        robot: str = DEFAULT_ROBOT, colony_step: int | None = None,
     ) -> None:  # fmt: skip
         """Buffer the rangefinder rays of ``robot`` in ``data``'s state; readings ``left_m``
         and ``right_m`` in metres (−1 = no hit), as ``servo_mj.world.sensors.ray_ranges_m``."""
         r = self._robot(robot)
         range_m = self._world.object_range / CM_PER_M
-        r.add_rays(data, left_m, right_m, times_of(t_s, step=step), range_m=range_m)
+        times = times_of(t_s, step=step, colony_step=colony_step)
+        r.add_rays(data, left_m, right_m, times, range_m=range_m)
         if r.rays.n >= self.settings.max_buffer_rows:
             r.flush(self.rec)
 
@@ -233,13 +240,13 @@ class Recording:
 
     def log_event(
         self, event: Any, *, world_name: str = "physics", t_s: float | None = None,
-        robot: str = DEFAULT_ROBOT,
+        robot: str = DEFAULT_ROBOT, colony_step: int | None = None,
     ) -> None:  # fmt: skip
         """Buffer one interpreter ``StepEvent`` of ``robot`` in ``world_name`` at its ``step``
-        and, when given, simulated time ``t_s`` (s). Give ``t_s`` for every event of a world
-        or for none (``ValueError`` otherwise)."""
+        and, when given, simulated time ``t_s`` (s) and ``colony_step``. Give each for every
+        event of a world or for none (``ValueError`` otherwise)."""
         ev = self._world_events(robot, world_name)
-        times = times_of(t_s, step=int(event.step))
+        times = times_of(t_s, step=int(event.step), colony_step=colony_step)
         ev.add(event, times)
         self._timelines(times)
         if ev.main.n >= self.settings.max_buffer_rows:
@@ -247,10 +254,11 @@ class Recording:
 
     def log_error(
         self, text: str, *, step: int, t_s: float | None = None, world_name: str = "physics",
-        robot: str = DEFAULT_ROBOT,
+        robot: str = DEFAULT_ROBOT, colony_step: int | None = None,
     ) -> None:  # fmt: skip
         """A line at ERROR level in ``log/<robot>/<world_name>`` (e.g. a physics failure)."""
-        self._world_events(robot, world_name).add_error(text, times_of(t_s, step=step))
+        times = times_of(t_s, step=step, colony_step=colony_step)
+        self._world_events(robot, world_name).add_error(text, times)
 
     def log_calibration_cycle(
         self, gait: int, cycle: int, F: float, T: float, dH: float, *, t_s: float

@@ -160,19 +160,33 @@ class RunRecorder:
 
 
 def validation_properties(job: Any, physics: PhysicsSettings) -> dict[str, Any]:
-    """Properties of a validation run: chromosome, start, seed, gait table and settings."""
-    x, y, h = job.start
+    """Properties of a validation run: chromosome, start, seed, gait table and settings. A
+    colony run's job (``servobot.colony_validate.ColonyJob``) has R start poses and its
+    ``ColonySettings``."""
     table = np.asarray(job.table, dtype=np.float64)
+    keys = ("x_cm", "y_cm", "heading_deg")
+    colony = getattr(job, "colony", None)
+    if colony is None:
+        start = dict(zip(keys, job.start, strict=True))
+        rng = f"default_rng(({job.seed}, {job.index}))"
+    else:
+        start = {f"robot{i}_{k}": v for i, p in enumerate(job.start)
+                 for k, v in zip(keys, p, strict=True)}  # fmt: skip
+        rng = (f"robot 0: default_rng(({job.seed}, {job.index})), robot i: "
+               f"default_rng(({job.seed}, {job.index}, i))")  # fmt: skip
+    settings = {
+        "WorldSettings": job.world, "ArenaSettings": job.arena, "PhysicsSettings": physics,
+        "max_steps": job.max_steps if job.max_steps is not None else job.world.coverage_steps,
+    }  # fmt: skip
+    if colony is not None:
+        settings["ColonySettings"] = colony
     return {
         "chromosome": {"text": format_chromosome(np.asarray(job.bits))},
-        "start": {"x_cm": x, "y_cm": y, "heading_deg": h, "index": job.index},
-        "seed": {"seed": job.seed, "servo_noise_rng": f"default_rng(({job.seed}, {job.index}))"},
+        "start": start | {"index": job.index},
+        "seed": {"seed": job.seed, "servo_noise_rng": rng},
         "gait_table": {"F_cm": table[:, 0], "T_cm": table[:, 1], "dH_deg": table[:, 2]},
-        "settings": {
-            "WorldSettings": job.world, "ArenaSettings": job.arena, "PhysicsSettings": physics,
-            "max_steps": job.max_steps if job.max_steps is not None else job.world.coverage_steps,
-        },
-    }  # fmt: skip
+        "settings": settings,
+    }
 
 
 def result_fields(record: dict[str, Any]) -> dict[str, Any]:
