@@ -63,8 +63,10 @@ MODE = "coverage"
 """Validation runs the full controller in coverage mode (SPEC §5)."""
 VALIDATION_FILES = ("report.json", "report.md", "tracks.npz", "tracks*.png", "run*.rrd")
 """What a validation writes into its folder besides ``settings.json``."""
-RRD_BYTES_PER_STEP = 8000
-"""Disk space a recording takes per controller step, bytes [measured: 3.5–4 MB / 600]."""
+RRD_BYTES_PER_STEP = 25_000
+"""Disk space a recording takes per robot step, bytes, rounded up [measured: a 600-step
+validation recording 11.5 MB (0.8 MB + 17.5 kB per step), colony runs ≈ 25 kB per robot
+step]."""
 RUN_BYTES = 8192
 """Memory of one run's job and record, bytes [estimate]; tracks are counted apart."""
 
