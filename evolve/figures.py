@@ -4,6 +4,7 @@ Figure 8: the arena alone — the 10 × 10 squares with their central contact zo
 squares shaded), the kill zone, the power station and docking box, the two lights, the edges
 of their lit cones and the dark area. Figure 9: test fitness (% of the 64 inner squares) of each
 population's best individual per saved generation, 5 thin lines and their bold mean.
+``figure_anytime``: anytime learning's best by generation in physics and in the table world.
 Figure 10: a chromosome's track from a start pose (the table interpreter) over the arena; for
 a colony (SPEC §7), every robot's track in its own colour from one colony start.
 Arena units (cm), x east, y north; headings 0 = north, clockwise.
@@ -183,6 +184,27 @@ def figure9(
     return _save(fig, Path(path))
 
 
+def figure_anytime(path: str | Path, arms: list[tuple[str, dict[str, Any]]], title: str) -> Path:
+    """Anytime learning: per arm (label, ``{"generations", "physics_fitness",
+    "table_fitness"}``), the fitness (squares of 100) of the best at each punctuation in physics
+    (solid) and in the table world on the same starts (dotted), one colour per arm."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for (label, curve), colour in zip(arms, ("tab:blue", "tab:gray", "tab:orange", "tab:green"),
+                                      strict=False):  # fmt: skip
+        gens = np.asarray(curve["generations"])
+        phys = np.array([np.nan if v is None else v for v in curve["physics_fitness"]], float)
+        table = np.array([np.nan if v is None else v for v in curve["table_fitness"]], float)
+        ax.plot(gens, phys, lw=2.0, marker="o", color=colour, label=f"{label}: physics")
+        ax.plot(gens, table, lw=1.0, ls=":", marker=".", color=colour, label="  table, same starts")
+    ax.set_xlabel("generation")
+    ax.set_ylabel("fitness of the best (squares of 100)")
+    ax.set_ylim(bottom=0)
+    ax.set_title(title, fontsize=8)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, Path(path))
+
+
 def run_track(
     chromosome: np.ndarray,
     *,
@@ -357,6 +379,7 @@ __all__ = [
     "figure8",
     "figure9",
     "figure10",
+    "figure_anytime",
     "lit_mask",
     "run_colony_track",
     "run_track",
