@@ -25,15 +25,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tqdm import tqdm
-
 from evolve.anytime import METHODS, AnytimeSettings
 from evolve.settings import WorldSettings
 from infra.bounds import check_int
+from infra.io import check_output_dir
 from servobot.cli.evolve import CliError, ga_settings, load_navigation
 from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.cli.runner import Interrupted, command_line, run_command
-from servobot.progress import GenerationBars
+from servobot.progress import GenerationBars, RunBar
 
 PROG = "servobot anytime"
 DEFAULT_OUT = Path("runs/anytime")
@@ -130,13 +129,14 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     table, warning = load_checked_table(args.table, args.model)
     if warning:
         print(warning, file=sys.stderr)
-    physics_bar = tqdm(desc="physics", unit="run", disable=args.no_progress, file=sys.stderr)
+    check_output_dir(args.out, option="--out")
+    physics_bar = RunBar("physics", enabled=not args.no_progress)
     try:
         summary = run_anytime(
             args.out, navigation=navigation, table=table, ga=ga, world=WorldSettings(),
             settings=settings, model=args.model, executor=executor_from_args(args),
             baseline=args.baseline, resume=args.resume, force=args.force, on_generation=bars,
-            on_physics_run=lambda: physics_bar.update(1),
+            on_physics_run=physics_bar,
         )  # fmt: skip
     finally:
         physics_bar.close()
