@@ -38,6 +38,8 @@ CONE_EDGE_LENGTH_FACTOR = 1.5
 ROBOT_COLOURS = ("tab:blue", "tab:purple", "tab:brown", "tab:pink", "tab:cyan", "tab:olive",
                  "tab:gray", "black")  # fmt: skip
 """Track colour of colony robot i (cycled): none of the arena's green, red and orange."""
+ANYTIME_COLOURS = {"none": "tab:gray", "bias": "tab:blue", "model": "tab:orange"}
+"""Colour of each anytime method's curves (the control grey)."""
 HEADING_ARROW = 18.0
 """Length of the start-heading arrow, arena units."""
 
@@ -184,13 +186,14 @@ def figure9(
     return _save(fig, Path(path))
 
 
-def figure_anytime(path: str | Path, arms: list[tuple[str, dict[str, Any]]], title: str) -> Path:
+def figure_anytime(
+    path: str | Path, arms: list[tuple[str, dict[str, Any], str]], title: str
+) -> Path:
     """Anytime learning: per arm (label, ``{"generations", "physics_fitness",
-    "table_fitness"}``), the fitness (squares of 100) of the best at each punctuation in physics
-    (solid) and in the table world on the same starts (dotted), one colour per arm."""
+    "table_fitness"}``, colour), the fitness (squares of 100) of the best at each punctuation in
+    physics (solid) and in the table world on the same starts (dotted)."""
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    for (label, curve), colour in zip(arms, ("tab:blue", "tab:gray", "tab:orange", "tab:green"),
-                                      strict=False):  # fmt: skip
+    for label, curve, colour in arms:
         gens = np.asarray(curve["generations"])
         phys = np.array([np.nan if v is None else v for v in curve["physics_fitness"]], float)
         table = np.array([np.nan if v is None else v for v in curve["table_fitness"]], float)

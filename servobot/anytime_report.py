@@ -123,9 +123,11 @@ def _label(s: dict[str, Any]) -> str:
 def figure(path: Path, run: dict[str, Any], baseline: dict[str, Any] | None) -> Path:
     """``figure_anytime.png``: physics (solid) and table (dotted) fitness of the best by
     generation, this run beside the ``baseline`` (a ``method none`` run of the same seed)."""
-    arms = [(_label(run), run["best_by_generation"])]
-    if baseline is not None:
-        arms.append((f"baseline: {_label(baseline)}", baseline["best_by_generation"]))
+    colours = figures.ANYTIME_COLOURS
+    arms = [(_label(run), run["best_by_generation"], colours[run["method"]])]
+    if baseline is not None:  # drawn first: this run's curves lie on top
+        label = f"baseline: {_label(baseline)}"
+        arms.insert(0, (label, baseline["best_by_generation"], colours["none"]))
     ga = run["settings"]["GASettings"]
     title = (
         f"anytime learning, method {run['method']}: the best of each population in physics "

@@ -369,3 +369,27 @@ def test_run_anytime_resumes_after_an_interrupt(nav_file, tmp_path):
     ran.clear()
     run_anytime(tmp_path / "cut", resume=True, on_physics_run=lambda: ran.append(1), **kw)
     assert ran == []  # finished: nothing is run again
+
+
+def test_bench_numbers_on_hand_made_summaries():
+    """``servobot.anytime_bench``: the difference from the control, Spearman over the tested,
+    and the wall time against the table-only run (the control's table time)."""
+    from servobot.anytime_bench import numbers
+
+    def run(method, phys, pairs, table_s, physics_s):
+        tested = [{"table_fitness": a, "physics_fitness": b} for a, b in pairs]
+        return {
+            "method": method, "punctuations": [{"tested": tested}],
+            "final": {"physics_inner_percent": phys, "table_inner_percent": 30.0, "gap_pp": 0.0},
+            "physics_runs": 2 * len(pairs), "table_wall_s": table_s, "physics_wall_s": physics_s,
+            "final_wall_s": 50.0,
+        }  # fmt: skip
+
+    pairs = [(10.0, 5.0), (20.0, 6.0), (30.0, 9.0), (40.0, 8.0)]
+    arms = numbers({0: {"none": run("none", 30.0, pairs, 10.0, 40.0),
+                        "bias": run("bias", 34.0, pairs, 10.0, 2.0)}})  # fmt: skip
+    assert arms["bias"]["physics_vs_control_pp"] == 4.0
+    assert arms["bias"]["spearman_pooled"] == pytest.approx(0.8)
+    assert arms["bias"]["wall_vs_table_only"] == pytest.approx(1.2)  # (10 + 2) / 10
+    assert arms["bias"]["wall_vs_table_only_with_final"] == pytest.approx(62 / 60)
+    assert arms["bias"]["goal_met"] is True and arms["none"]["goal_met"] is None
