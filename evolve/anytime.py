@@ -133,6 +133,10 @@ class PhysicsRun:
     """(n,) gait of each cycle that counts for the model."""
     residuals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """(n, 3) that cycle's move (F, T cm, dH deg) minus the base table row of its gait."""
+    cycles: int = 0
+    """Gait cycles the run walked, counted for the model or not."""
+    end: str | None = None
+    """Why the run ended (``evolve.interpreter.END_NAMES``); None when physics failed."""
 
 
 PhysicsTester = Callable[[np.ndarray, np.ndarray, int, np.ndarray], list[PhysicsRun]]
@@ -344,6 +348,7 @@ def _measure(
             "table_squares": table_squares[c].tolist(),
             "physics_squares": [run.squares for run in mine],
             "physics_inner_squares": [run.inner_squares for run in mine],
+            "physics_ends": [run.end for run in mine],
             "errors": [run.error for run in mine if run.error],
         })  # fmt: skip
     means = _apply_bias_rule(tested, runs)
@@ -361,6 +366,7 @@ def _measure(
         "table_in_use": in_use.values.tolist(),
         "residual_sum": total.tolist(),
         "residual_count": count.tolist(),
+        "physics_cycles": sum(run.cycles for run in measured),
         "physics_runs": len(measured),
         "physics_errors": sum(run.error is not None for run in measured),
         "physics_wall_s": wall,

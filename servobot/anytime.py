@@ -46,7 +46,7 @@ from evolve.anytime import (
     punctuation_generations,
 )
 from evolve.codec import format_chromosome, write_chromosome
-from evolve.interpreter import run
+from evolve.interpreter import END_NAMES, run
 from evolve.population import OnGeneration
 from evolve.settings import GASettings, WorldSettings
 from evolve.stages import (
@@ -108,6 +108,8 @@ def measure_run(job: PunctuationJob) -> PhysicsRun:
         None,
         np.array([g for g, _ in counted], dtype=np.int64),
         np.array([r for _, r in counted], dtype=np.float64).reshape(-1, 3),
+        len(world.log),
+        END_NAMES[int(res.end)],
     )
 
 

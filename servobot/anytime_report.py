@@ -31,6 +31,7 @@ def punctuation_entry(rec: dict[str, Any]) -> dict[str, Any]:
         entry["bias"] = rec["bias"]
     return entry | {
         "table_error": rec["table_error"],
+        "physics_cycles": rec["physics_cycles"],
         "physics_runs": rec["physics_runs"],
         "physics_errors": rec["physics_errors"],
         "physics_wall_s": rec["physics_wall_s"],
