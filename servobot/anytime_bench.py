@@ -25,7 +25,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from scipy.stats import spearmanr
 
 from evolve import figures
@@ -36,6 +35,7 @@ from evolve.stages import navigation_section
 from infra.executors import EXECUTOR_SPECS, check_spec, make_executor
 from infra.io import atomic_write_json, atomic_write_text, read_json
 from servobot.anytime import run_anytime
+from servobot.anytime_report import label, mean_of
 from servobot.validate import load_checked_table
 
 GOAL_PP = 3.0
@@ -106,11 +106,6 @@ def _spearman(a: list[float], b: list[float]) -> float | None:
     return float(spearmanr(a, b).statistic)
 
 
-def _mean(values: list[Any]) -> float | None:
-    vals = [v for v in values if v is not None]
-    return float(np.mean(vals)) if vals else None
-
-
 def arm_numbers(runs: list[dict[str, Any]], control: list[dict[str, Any]]) -> dict[str, Any]:
     """The measured numbers of one method over its seeds (``control``: the none runs)."""
     pairs: list[tuple[float, float]] = []
@@ -130,13 +125,13 @@ def arm_numbers(runs: list[dict[str, Any]], control: list[dict[str, Any]]) -> di
     delta = [None if a is None or b is None else a - b for a, b in zip(phys, base, strict=True)]
     return {
         "seeds": len(runs),
-        "physics_inner_percent": _mean(phys),
-        "table_inner_percent": _mean([s["final"]["table_inner_percent"] for s in runs]),
-        "gap_pp": _mean([s["final"]["gap_pp"] for s in runs]),
-        "physics_vs_control_pp": _mean(delta),
+        "physics_inner_percent": mean_of(phys),
+        "table_inner_percent": mean_of([s["final"]["table_inner_percent"] for s in runs]),
+        "gap_pp": mean_of([s["final"]["gap_pp"] for s in runs]),
+        "physics_vs_control_pp": mean_of(delta),
         "physics_vs_control_pp_per_seed": delta,
         "spearman_pooled": _spearman([a for a, _ in pairs], [b for _, b in pairs]),
-        "spearman_within_punctuation": _mean(within),
+        "spearman_within_punctuation": mean_of(within),
         "tested": len(pairs),
         "physics_runs": sum(s["physics_runs"] for s in runs),
         "physics_wall_s": sum(s["physics_wall_s"] for s in runs),
@@ -192,7 +187,7 @@ def mean_curve(runs: list[dict[str, Any]]) -> dict[str, list[Any]]:
     curves = [s["best_by_generation"] for s in runs]
     out: dict[str, list[Any]] = {"generations": curves[0]["generations"]}
     for key in ("physics_fitness", "table_fitness"):
-        out[key] = [_mean(list(vals)) for vals in zip(*(c[key] for c in curves), strict=True)]
+        out[key] = [mean_of(list(vals)) for vals in zip(*(c[key] for c in curves), strict=True)]
     return out
 
 
@@ -209,9 +204,8 @@ def main(argv: list[str] | None = None) -> int:
     curves = []
     for m in arms:
         runs = [summaries[s][m] for s in summaries]
-        phys = arms[m]["physics_inner_percent"]
-        label = f"{m} (final: physics {'—' if phys is None else f'{phys:.1f}'}% inner)"
-        curves.append((label, mean_curve(runs), figures.ANYTIME_COLOURS[m]))
+        text_label = label(m, arms[m]["physics_inner_percent"])
+        curves.append((text_label, mean_curve(runs), figures.ANYTIME_COLOURS[m]))
     title = (f"anytime learning: the best of each population in physics (mean of "
              f"{args.populations} populations × {len(args.seeds)} seeds)")  # fmt: skip
     figures.figure_anytime(args.out / "figure_anytime_bench.png", curves, title)

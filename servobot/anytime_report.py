@@ -38,9 +38,15 @@ def punctuation_entry(rec: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _mean(values: list[Any]) -> float | None:
+def mean_of(values: list[Any]) -> float | None:
+    """The mean of the values that are not None; None if there are none."""
     vals = [v for v in values if v is not None]
     return float(np.mean(vals)) if vals else None
+
+
+def percent(v: float | None) -> str:
+    """A percentage for people: ``41.3%``, ``—`` when not measured."""
+    return "—" if v is None else f"{v:.1f}%"
 
 
 def final_entry(finals: list[dict[str, Any]]) -> dict[str, Any]:
@@ -57,9 +63,9 @@ def final_entry(finals: list[dict[str, Any]]) -> dict[str, Any]:
         })  # fmt: skip
     return {
         "starts": finals[0]["summary"]["starts"] if finals else 0,
-        "table_inner_percent": _mean([p["table_inner_percent"] for p in pops]),
-        "physics_inner_percent": _mean([p["physics_inner_percent"] for p in pops]),
-        "gap_pp": _mean([p["gap_pp"] for p in pops]),
+        "table_inner_percent": mean_of([p["table_inner_percent"] for p in pops]),
+        "physics_inner_percent": mean_of([p["physics_inner_percent"] for p in pops]),
+        "gap_pp": mean_of([p["gap_pp"] for p in pops]),
         "physics_errors": sum(p["physics_errors"] for p in pops),
         "populations": pops,
     }
@@ -73,8 +79,8 @@ def best_curve(records: list[dict[str, Any]]) -> dict[str, list[Any]]:
     for rec in records:
         best = [t for t in rec["tested"] if t["rank"] == 0]
         out["generations"].append(rec["generation"])
-        out["physics_fitness"].append(_mean([t["physics_fitness"] for t in best]))
-        out["table_fitness"].append(_mean([t["table_fitness"] for t in best]))
+        out["physics_fitness"].append(mean_of([t["physics_fitness"] for t in best]))
+        out["table_fitness"].append(mean_of([t["table_fitness"] for t in best]))
     return out
 
 
@@ -100,25 +106,24 @@ def provenance(
     k: int, ga: GASettings, table: GaitTable, settings: AnytimeSettings, final: dict[str, Any]
 ) -> str:
     """The header of ``best_pop{k}.txt``."""
-
-    def pct(v: float | None) -> str:
-        return "—" if v is None else f"{v:.1f}%"
-
     return (
         f"servobot anytime, method {settings.method} (every {settings.every}, top "
         f"{settings.top}, {settings.physics_starts} physics starts), population {k} of "
         f"{ga.populations}, final generation {ga.generations}, population size "
         f"{ga.population_size}, seed {ga.seed}\ngait table: {table.source}\n"
         "16 genes: coverage section (learned) + navigation (fixed); final test on "
-        f"{settings.final_starts} fresh starts: table {pct(final['table_inner_percent'])}, "
-        f"physics {pct(final['physics_inner_percent'])} of the inner squares"
+        f"{settings.final_starts} fresh starts: table {percent(final['table_inner_percent'])}, "
+        f"physics {percent(final['physics_inner_percent'])} of the inner squares"
     )
 
 
+def label(method: str, physics_inner_percent: float | None) -> str:
+    """A method's legend label, with its finalists' physics inner coverage."""
+    return f"{method} (final: physics {percent(physics_inner_percent)} inner)"
+
+
 def _label(s: dict[str, Any]) -> str:
-    f = s["final"]
-    phys = f["physics_inner_percent"]
-    return f"{s['method']} (final: physics {'—' if phys is None else f'{phys:.1f}'}% inner)"
+    return label(s["method"], s["final"]["physics_inner_percent"])
 
 
 def figure(path: Path, run: dict[str, Any], baseline: dict[str, Any] | None) -> Path:
@@ -137,4 +142,14 @@ def figure(path: Path, run: dict[str, Any], baseline: dict[str, Any] | None) -> 
     return figures.figure_anytime(path, arms, title)
 
 
-__all__ = ["best_curve", "figure", "final_entry", "provenance", "punctuation_entry", "summary"]
+__all__ = [
+    "best_curve",
+    "figure",
+    "final_entry",
+    "label",
+    "mean_of",
+    "percent",
+    "provenance",
+    "punctuation_entry",
+    "summary",
+]

@@ -93,11 +93,9 @@ def anytime_settings(args: argparse.Namespace) -> AnytimeSettings:
 
 
 def _print(summary: dict[str, Any], out: Path) -> None:
+    from servobot.anytime_report import percent as pct
+
     f = summary["final"]
-
-    def pct(v: float | None) -> str:
-        return "—" if v is None else f"{v:.1f}%"
-
     print(
         f"anytime ({summary['method']}): final bests on {f['starts']} fresh starts: table "
         f"{pct(f['table_inner_percent'])}, physics {pct(f['physics_inner_percent'])} of the 64 "
