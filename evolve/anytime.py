@@ -5,7 +5,7 @@ so often, tests the best controllers on the real robot, whose results correct th
 Two published variants, both here, with MuJoCo physics as the real robot:
 
 - ``bias``: fitness biasing (G. Parker & J. Mills, "Adaptive hexapod gait control using
-  anytime learning with fitness biasing", GECCO 1999). The physics/table fitness ratios of
+  anytime learning with fitness biasing"). The physics/table fitness ratios of
   the tested individuals bias the model's fitness until the next punctuation (``bias_rule``,
   ``Bias``).
 - ``model``: co-evolution of model parameters (G. Parker, punctuated anytime learning),
@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from evolve.codec import format_chromosome
+from evolve.codec import format_chromosome, parse_chromosome
 from evolve.population import (
     STAGE_IDS,
     Generation,
@@ -296,8 +296,8 @@ def population_bias(records: dict[int, dict[str, Any]], k: int, upto: int) -> Bi
 
 
 def _key(text_genes: list[str]) -> bytes:
-    bits = np.array([[c == "1" for c in g.replace(" ", "")] for g in text_genes], dtype=np.uint8)
-    return section_keys(bits[None])[0]
+    """The key of a section recorded as text, one gene a line."""
+    return section_keys(parse_chromosome("\n".join(text_genes))[None])[0]
 
 
 def _genes(section: np.ndarray) -> list[str]:
