@@ -10,7 +10,7 @@ docking. ``--robot-xml``: a variant of ``models/servobot/servobot.xml`` (e.g. ot
 
 Runs the chromosome (coverage mode) in the physics world from the same seeded start poses as
 ``servobot validate`` (``evolve.starts.coverage_starts``) and logs every gait cycle the
-interpreter executes.
+interpreter executes (``calibration.residuals``).
 Each cycle's physical move (F, T cm, dH deg, in the frame the robot had when it began) is
 compared with the table row of its gait. It prints the residual (physics − table) per gait,
 for cycles that repeat the previous gait vs cycles after a gait change, and the first cycle
@@ -23,53 +23,19 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from collections import Counter, defaultdict
-from typing import Any
 
 import numpy as np
 
+from calibration.residuals import LoggingWorld, residuals
 from evolve.codec import read_chromosome
 from evolve.interpreter import END_NAMES, run
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts, navigation_starts
 from evolve.table import load_table
 from evolve.world import TableWorld
-from servo_mj.robot.bot import displacement
 from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings, default_robot, overlaps_station
 from servo_mj.world.physics_world import PhysicsWorld
-
-
-class LoggingWorld:
-    """Wraps a world and records (gait, pose before, pose after) of every cycle."""
-
-    def __init__(self, inner: Any) -> None:
-        self.inner = inner
-        self.log: list[tuple[int, tuple[float, ...], tuple[float, ...]]] = []
-
-    def pose(self) -> tuple[float, float, float]:
-        return self.inner.pose()
-
-    def step(self, gait: int) -> None:
-        before = self.inner.pose()
-        self.inner.step(gait)
-        self.log.append((int(gait), before, self.inner.pose()))
-
-    def object_sensors(self) -> tuple[bool, bool]:
-        return self.inner.object_sensors()
-
-    def light_sensors(self) -> tuple[bool, bool]:
-        return self.inner.light_sensors()
-
-
-def residuals(
-    log: list[tuple[int, tuple[float, ...], tuple[float, ...]]], table: np.ndarray
-) -> list[tuple[int, int, np.ndarray]]:
-    """Per cycle (gait, previous gait or −1, physics (F, T, dH) − table row)."""
-    out, prev = [], -1
-    for gait, before, after in log:
-        out.append((gait, prev, np.array(displacement(before, after)) - table[gait]))
-        prev = gait
-    return out
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -4,6 +4,7 @@ Figure 8: the arena alone — the 10 × 10 squares with their central contact zo
 squares shaded), the kill zone, the power station and docking box, the two lights, the edges
 of their lit cones and the dark area. Figure 9: test fitness (% of the 64 inner squares) of each
 population's best individual per saved generation, 5 thin lines and their bold mean.
+``figure_anytime``: anytime learning's best by generation in physics and in the table world.
 Figure 10: a chromosome's track from a start pose (the table interpreter) over the arena; for
 a colony (SPEC §7), every robot's track in its own colour from one colony start.
 Arena units (cm), x east, y north; headings 0 = north, clockwise.
@@ -37,6 +38,8 @@ CONE_EDGE_LENGTH_FACTOR = 1.5
 ROBOT_COLOURS = ("tab:blue", "tab:purple", "tab:brown", "tab:pink", "tab:cyan", "tab:olive",
                  "tab:gray", "black")  # fmt: skip
 """Track colour of colony robot i (cycled): none of the arena's green, red and orange."""
+ANYTIME_COLOURS = {"none": "tab:gray", "bias": "tab:blue", "model": "tab:orange"}
+"""Colour of each anytime method's curves (the control grey)."""
 HEADING_ARROW = 18.0
 """Length of the start-heading arrow, arena units."""
 
@@ -178,6 +181,28 @@ def figure9(
     ax.set_ylabel("test fitness (% of 64 inner squares)")
     ax.set_ylim(0, 100)
     ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, Path(path))
+
+
+def figure_anytime(
+    path: str | Path, arms: list[tuple[str, dict[str, Any], str]], title: str
+) -> Path:
+    """Anytime learning: per arm (label, ``{"generations", "physics_fitness",
+    "table_fitness"}``, colour), the fitness (squares of 100) of the best at each punctuation in
+    physics (solid) and in the table world on the same starts (dotted)."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for label, curve, colour in arms:
+        gens = np.asarray(curve["generations"])
+        phys = np.array([np.nan if v is None else v for v in curve["physics_fitness"]], float)
+        table = np.array([np.nan if v is None else v for v in curve["table_fitness"]], float)
+        ax.plot(gens, phys, lw=2.0, marker="o", color=colour, label=f"{label}: physics")
+        ax.plot(gens, table, lw=1.0, ls=":", marker=".", color=colour, label="  table, same starts")
+    ax.set_xlabel("generation")
+    ax.set_ylabel("fitness of the best (squares of 100)")
+    ax.set_ylim(bottom=0)
+    ax.set_title(title, fontsize=8)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     return _save(fig, Path(path))
@@ -357,6 +382,7 @@ __all__ = [
     "figure8",
     "figure9",
     "figure10",
+    "figure_anytime",
     "lit_mask",
     "run_colony_track",
     "run_track",

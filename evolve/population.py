@@ -41,8 +41,10 @@ from infra.io import atomic_write_text
 
 CHECKPOINT_EVERY = 16
 """Generations between checkpoints of a population (operational, not a SPEC value)."""
-STAGE_IDS = {"navigation": 0, "coverage": 1, "colony": 2}
-"""Second entropy word of each stage's SeedSequence, so the stages draw different numbers."""
+STAGE_IDS = {"navigation": 0, "coverage": 1, "colony": 2, "anytime": 3}
+"""Second entropy word of each stage's SeedSequence, so the stages draw different numbers.
+``anytime`` seeds only the physics punctuations' own draws (their start poses and servo
+noise, the final test); its populations evolve from coverage's seeds (``evolve.anytime``)."""
 HISTORY_COLUMNS = ("generation", "best_fitness", "mean_fitness", "docked_fraction", "unique")
 """Columns of ``history_pop{k}.csv``: per generation, on that generation's 10 starts;
 ``docked_fraction`` = fraction of all runs that docked at least once; ``unique`` = distinct

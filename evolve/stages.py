@@ -127,9 +127,11 @@ def _check_navigation(navigation: np.ndarray) -> np.ndarray:
     return nav.astype(np.uint8)
 
 
-def _settings_doc(
+def stage_settings_doc(
     stage: Stage, ga: GASettings, world: WorldSettings, table: GaitTable
 ) -> dict[str, Any]:
+    """Everything a stage's results depend on (its ``settings.json`` and checkpoints' record):
+    the settings dataclasses, the stage, the table, the navigation section."""
     doc = json.loads(settings_json(ga, world, *stage.extra_settings))
     doc["stage"] = stage.name
     doc["table"] = {"source": table.source, "values": table.values.tolist()}
@@ -179,7 +181,7 @@ def _stage_folder(
     """Check the sizes, then hold the stage's folder (lock, ownership record) for the block;
     yields the settings document."""
     check_ga(ga, stage.max_steps)
-    doc = _settings_doc(stage, ga, world, table)
+    doc = stage_settings_doc(stage, ga, world, table)
     with run_folder(folder, doc, owned=STAGE_FILES, resume=resume, force=force):
         yield doc
 
@@ -502,5 +504,6 @@ __all__ = [
     "evaluate_sections",
     "stage_need",
     "stage_seeds",
+    "stage_settings_doc",
     "CHECKPOINT_EVERY",
 ]

@@ -48,4 +48,24 @@ class GenerationBars:
             bar.close()
 
 
-__all__ = ["GenerationBars"]
+class RunBar:
+    """An ``on_run()`` callback: one tqdm bar counting finished runs, on stderr, opened at the
+    first run (a command refused before any run prints no bar)."""
+
+    def __init__(self, desc: str, enabled: bool = True) -> None:
+        self.desc, self.enabled = desc, enabled
+        self._bar: Any = None
+
+    def __call__(self, *_: Any) -> None:
+        if self._bar is None:
+            self._bar = tqdm(desc=self.desc, unit="run", disable=not self.enabled,
+                             file=sys.stderr)  # fmt: skip
+        self._bar.update(1)
+
+    def close(self) -> None:
+        """Close the bar if it was opened."""
+        if self._bar is not None:
+            self._bar.close()
+
+
+__all__ = ["GenerationBars", "RunBar"]

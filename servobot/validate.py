@@ -196,10 +196,21 @@ def _record(res: Any, wall_s: float) -> dict[str, Any]:
     }
 
 
-def run_start(job: StartJob) -> dict[str, Any]:
-    """Run one start pose in both worlds (worker function; catches physics failures)."""
+def physics_world(job: StartJob, on_frame: Callable[..., None] | None = None) -> Any:
+    """The physics world of one run: the robot of ``job.model`` placed at ``job.start`` in the
+    arena, its servo noise drawn from ``default_rng((job.seed, job.index))``."""
     from servo_mj.world.physics_world import PhysicsWorld
 
+    x, y, h = job.start
+    return PhysicsWorld(
+        x, y, h, world=job.world, arena=job.arena, physics=job.physics,
+        robot=None if job.model is None else default_robot(job.model),
+        rng=np.random.default_rng((job.seed, job.index)), on_frame=on_frame,
+    )  # fmt: skip
+
+
+def run_start(job: StartJob) -> dict[str, Any]:
+    """Run one start pose in both worlds (worker function; catches physics failures)."""
     x, y, h = job.start
     rec = None
     if job.rrd_path is not None:
@@ -218,12 +229,7 @@ def run_start(job: StartJob) -> dict[str, Any]:
 
     def physics_run(last: dict[str, Any]) -> tuple[dict[str, Any], np.ndarray]:
         t0 = time.perf_counter()
-        pw = PhysicsWorld(
-            x, y, h, world=job.world, arena=job.arena, physics=job.physics,
-            robot=None if job.model is None else default_robot(job.model),
-            rng=np.random.default_rng((job.seed, job.index)),
-            on_frame=None if rec is None else rec.on_frame,
-        )  # fmt: skip
+        pw = physics_world(job, on_frame=None if rec is None else rec.on_frame)
         if rec is not None:
             rec.attach_physics(pw)
 
@@ -517,6 +523,7 @@ __all__ = [
     "execute",
     "jsonable",
     "load_checked_table",
+    "physics_world",
     "report_head",
     "run_both_worlds",
     "run_start",

@@ -120,10 +120,10 @@ def test_cli_records_a_rerun_file(tmp_path) -> None:
 
 
 def test_gap_diagnostic_residuals_are_zero_in_the_table_world_and_see_a_detuned_table() -> None:
-    """``calibration.gap`` compares each executed cycle with its gait's table row: run in the
-    table world itself every residual is 0; against a table whose executed gaits turn 1 deg
-    more, every cycle shows exactly -1 deg."""
-    from calibration.gap import LoggingWorld, residuals
+    """``calibration.residuals`` (behind ``calibration.gap``) compares each executed cycle
+    with its gait's table row: run in the table world itself every residual is 0; against a
+    table whose executed gaits turn 1 deg more, every cycle shows exactly -1 deg."""
+    from calibration.residuals import LoggingWorld, residuals
     from evolve.interpreter import run
     from evolve.world import TableWorld
 

@@ -53,6 +53,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "deep_json": d / "deep.json",
         "bad_params": d / "params.json",
         "deep_meta": d / "deep_meta.json",
+        "bias_run": d / "bias_run",
         "devnull": Path(os.devnull),
     }
     f["dir"].mkdir()
@@ -75,6 +76,9 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     f["bad_params"].write_text(json.dumps({"gaits": [{"gait": 0}], "stride_rad": 0.47}))
     deep = '{"a": ' * 900 + "1" + "}" * 900  # parses, but would exhaust recursive walkers
     f["deep_meta"].write_text(_table_doc()[:-1] + f', "provenance": {deep}}}')
+    (f["bias_run"] / "anytime").mkdir(parents=True)
+    summary = {"method": "bias", "best_by_generation": {}, "final": {}}
+    (f["bias_run"] / "anytime" / "summary.json").write_text(json.dumps(summary))
     return f
 
 
@@ -108,6 +112,30 @@ CASES = {
         (["colony", "--robots", "0", "--navigation", "{chrom8}"], "--robots must be an integer"),
         (["navigation", "--robots", "3"], "--robots is an option of the colony stage"),
         (["colony", "--navigation", "{binary}"], "binary.bin: holds binary data"),
+    ],
+    "anytime": [
+        ([], "the following arguments are required: --navigation"),
+        (["--navigation", "{dir}"], "a_folder: is a folder, not a chromosome file"),
+        (["--navigation", "{binary}"], "binary.bin: holds binary data"),
+        (["--navigation", "{chrom7}"], "expected 8 or 16 genes, found 7"),
+        (["--navigation", "{chrom8}", "--table", "{inf_table}"], "non-finite number Infinity"),
+        (["--navigation", "{chrom8}", "--method", "fast"], "argument --method: invalid choice"),
+        (["--navigation", "{chrom8}", "--every", "0"], "--every must be an integer ≥ 1, got 0"),
+        (["--navigation", "{chrom8}", "--top", "0"], "--top must be an integer ≥ 1, got 0"),
+        (["--navigation", "{chrom8}", "--physics-starts", "-2"], "--physics-starts must be an"),
+        (["--navigation", "{chrom8}", "--physics-steps", "0"], "--physics-steps must be an"),
+        (["--navigation", "{chrom8}", "--final-starts", "0"], "--final-starts must be an"),
+        (["--navigation", "{chrom8}", "--physics-steps", "1000000000000"], "physics runs"),
+        (["--navigation", "{chrom8}", "--populations", "1000000000"], "1000000000 populations"),
+        (["--navigation", "{chrom8}", "--generations", "0"], "--generations must be ≥ 1"),
+        (["--navigation", "{chrom8}", "--seed", "-1"], "--seed must be ≥ 0"),
+        (["--navigation", "{chrom8}", "--workers", "1000000"], "--workers must be an integer"),
+        (["--navigation", "{chrom8}", "--executor", "cloud"], "executor must be serial"),
+        (["--navigation", "{chrom8}", "--model", "{dir}"], "--model"),
+        (["--navigation", "{chrom8}", "--baseline", "{dir}"], "no such anytime summary"),
+        (["--navigation", "{chrom8}", "--baseline", "{bias_run}"], "must be a --method none run"),
+        (["--navigation", "{chrom8}", "--out", "{chrom16}"], "is a file, not a folder"),
+        (["--navigation", "{chrom8}", "--out", "/proc/servobot-x"], "cannot write there"),
     ],
     "trace": [
         (["{dir}", "--start", "250", "250", "0"], "a_folder: is a folder, not a chromosome"),

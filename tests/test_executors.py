@@ -17,6 +17,7 @@ from run_folder import result_files
 
 from calibration.measure import measure_all
 from evolve import stages
+from evolve.anytime import AnytimeSettings
 from evolve.codec import parse_chromosome
 from evolve.settings import GASettings
 from evolve.table import load_table
@@ -32,6 +33,7 @@ from infra.executors import (
     run_in_order,
     values_or_raise,
 )
+from servobot.anytime import run_anytime
 from servobot.cli import evolve as evolve_cli
 from servobot.validate import validate
 
@@ -110,6 +112,26 @@ def test_populations_identical_on_every_executor(executors, tmp_path):
         assert files[name] == files["here"], name
         assert sorted(heard[name], key=key) == sorted(heard["here"], key=key), name
     assert len(heard["here"]) == 2 * 7
+
+
+def test_anytime_identical_on_every_executor(executors, tmp_path):
+    """Anytime learning's physics punctuations and final test on any executor: the same
+    records, tables, chromosomes and summary (wall times aside)."""
+    nav = np.zeros((8, 30), dtype=np.uint8)
+    ga = GASettings(populations=2, population_size=8, generations=2, test_starts=2, seed=4)
+    settings = AnytimeSettings(method="model", every=2, top=2, physics_starts=1,
+                               physics_steps=3, final_starts=1, min_samples=1)  # fmt: skip
+    files = {}
+    for name, ex in executors.items():
+        run_anytime(tmp_path / name, navigation=nav, table=TABLE, ga=ga, settings=settings,
+                    executor=ex)  # fmt: skip
+        files[name] = {
+            rel: _without_wall_times(json.loads(v) if isinstance(v, bytes) else v)
+            if rel.endswith(".json") else v
+            for rel, v in result_files(tmp_path / name / "anytime").items()
+        }  # fmt: skip
+    assert "tables/gen0002.json" in files["serial"]
+    assert files["serial"] == files["process"] == files["ray"]
 
 
 # --------------------------------------------------------------------------- crashes

@@ -12,6 +12,7 @@ import sys
 COMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("servobot.cli.calibrate", "regenerate the gait table (Figure 4) from MuJoCo"),
     "evolve": ("servobot.cli.evolve", "run the CGA: navigation or coverage stage"),
+    "anytime": ("servobot.cli.anytime", "coverage learning corrected by physics punctuations"),
     "trace": ("servobot.cli.trace", "print (and record) a controller's run step by step"),
     "validate": ("servobot.cli.validate", "run a chromosome in the table simulation and physics"),
     "reproduce": ("servobot.cli.reproduce", "the end-to-end reproduction into one run folder"),

@@ -1,0 +1,584 @@
+"""Punctuated anytime learning: coverage learning on the table world, corrected by physics.
+
+Anytime learning (Parker) keeps a fast model of the robot for the genetic algorithm and, every
+so often, tests the best controllers on the real robot, whose results correct the learning.
+Two published variants, both here, with MuJoCo physics as the real robot:
+
+- ``bias``: fitness biasing (G. Parker & J. Mills, "Adaptive hexapod gait control using
+  anytime learning with fitness biasing"). The physics/table fitness ratios of
+  the tested individuals bias the model's fitness until the next punctuation (``bias_rule``,
+  ``Bias``).
+- ``model``: co-evolution of model parameters (G. Parker, punctuated anytime learning),
+  here fitted rather than evolved. The gait table is corrected by the per-cycle residuals
+  physics measured along the tested runs (``corrected_table``).
+- ``none``: the control arm. The same punctuations are measured and recorded but not fed
+  back; its populations are exactly ``servobot evolve coverage``'s with the same seed.
+
+The loop, populations in lockstep (each a ``PopulationRun`` seeded as coverage's)::
+
+    for g in 0..G:
+        table_g = base table (model: base + pooled residuals of the punctuations before g)
+        each population: f = evaluate on table_g                  # SPEC §5, 10 starts
+        f' = f · bias (bias: from the last punctuation, else 1)
+        if g is a punctuation (K, 2K, … ≤ G):
+            the T best distinct genomes of each population by f' run in physics from M starts
+            drawn for g, and in the table world on table_g from the same starts
+            bias:  b = physics / table per tested genome; the population's mean b for the rest
+            model: residuals pooled, table corrected, generation g re-evaluated on it
+        each population: commit(f')                                # elite and roulette on f'
+
+Physics stays outside this module (``evolve`` imports no MuJoCo): the caller passes a
+``PhysicsTester`` (``servobot.anytime``). Each punctuation is a file written once,
+``punctuations/gen{g:04d}.json``; what a generation needs (biases, the corrected table) is a
+function of these records, so a resumed run, its populations back at their checkpoints,
+replays to the same numbers bit for bit without running physics again.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evolve.codec import format_chromosome, parse_chromosome
+from evolve.population import (
+    STAGE_IDS,
+    Generation,
+    OnGeneration,
+    PopulationResult,
+    PopulationRun,
+    Stage,
+    StageError,
+    evaluate_sections,
+    stage_seeds,
+)
+from evolve.settings import GASettings, WorldSettings
+from evolve.starts import coverage_starts
+from evolve.table import COLUMNS, N_GAITS, GaitTable, table_to_json, validate_table
+from infra.io import atomic_write_json, read_json
+
+METHODS = ("none", "bias", "model")
+"""What a punctuation feeds back: nothing (control), a fitness bias, a corrected table."""
+RECORDS = "punctuations"
+"""Folder of the punctuation records, ``gen{g:04d}.json``."""
+TABLES = "tables"
+"""Folder of the corrected gait tables of method ``model``, ``gen{g:04d}.json``."""
+
+
+class AnytimeError(StageError):
+    """Anytime learning cannot run or resume (bad settings, an inconsistent record)."""
+
+
+@dataclass(frozen=True)
+class AnytimeSettings:
+    """Punctuations of anytime learning: when, whom and how physics tests, what it corrects."""
+
+    method: str = "bias"
+    """``none`` (measure, feed nothing back: the table-only control), ``bias`` (fitness
+    biasing) or ``model`` (corrected gait table) [chosen]."""
+    every: int = 32
+    """K: a punctuation at generations K, 2K, … up to G (none at generation 0, whose random
+    controllers would spend physics on nothing) [chosen]."""
+    top: int = 2
+    """T: distinct genomes tested per population, the best by the fitness in force. ``bias``
+    needs T ≥ 2: with one tested genome its ratio is also the population's mean, every
+    individual is scaled alike, and roulette on fitness^1.5 is scale-invariant [chosen]."""
+    physics_starts: int = 2
+    """M: coverage start poses of a punctuation, drawn for that generation and shared by every
+    tested genome (both worlds) [chosen]."""
+    physics_steps: int = 600
+    """Steps of a punctuation's runs and of the final test, both worlds (SPEC §5: 600; tests
+    use a few)."""
+    final_starts: int = 20
+    """Fresh coverage starts on which each population's final best runs in both worlds."""
+    min_samples: int = 20
+    """``model``: a gait's row is corrected once this many physics cycles of it were counted
+    (pooled over punctuations); until then it keeps its base row [chosen]."""
+    station_margin_cm: float = 30.0
+    """``model``: a cycle that begins with the robot's centre closer than this to the station
+    block is not counted: it measures the block (the table world has none), not the gait
+    (probe reach 23.7 cm) [chosen]."""
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise AnytimeError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        for name in ("every", "top", "physics_starts", "physics_steps", "final_starts"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise AnytimeError(f"{name} must be an integer ≥ 1, got {value!r}")
+        if isinstance(self.min_samples, bool) or not isinstance(self.min_samples, int):
+            raise AnytimeError(f"min_samples must be an integer ≥ 1, got {self.min_samples!r}")
+        if self.min_samples < 1:
+            raise AnytimeError(f"min_samples must be an integer ≥ 1, got {self.min_samples!r}")
+        if not self.station_margin_cm >= 0.0:
+            raise AnytimeError(f"station_margin_cm must be ≥ 0, got {self.station_margin_cm}")
+
+
+@dataclass(frozen=True)
+class PhysicsRun:
+    """What physics measured along one run of a tested genome."""
+
+    squares: int | None
+    """Squares reached (of 100; the run fitness, SPEC §5); None when physics failed."""
+    inner_squares: int | None
+    """Inner squares reached (of 64); None when physics failed."""
+    error: str | None = None
+    """Why physics failed (``PhysicsError: ...``), else None."""
+    gaits: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """(n,) gait of each cycle that counts for the model."""
+    residuals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """(n, 3) that cycle's move (F, T cm, dH deg) minus the base table row of its gait."""
+    cycles: int = 0
+    """Gait cycles the run walked, counted for the model or not."""
+    end: str | None = None
+    """Why the run ended (``evolve.interpreter.END_NAMES``); None when physics failed."""
+
+
+PhysicsTester = Callable[[np.ndarray, np.ndarray, int, np.ndarray], list[PhysicsRun]]
+"""``test_in_physics(genomes (C, 16, 30), starts (M, 3), seed, base table (16, 3))`` → C·M
+runs, genome-major (run c·M + m: genome c from start m, servo noise seeded by (seed, m)), of
+``AnytimeSettings.physics_steps`` steps each; residuals against the base table."""
+OnPunctuation = Callable[[dict[str, Any]], None]
+"""``on_punctuation(record)`` after each punctuation (measured now or replayed from its file)."""
+
+
+# --------------------------------------------------------------------------- the rules
+
+
+def punctuation_generations(generations: int, every: int) -> tuple[int, ...]:
+    """The generations physics tests: K, 2K, … ≤ G."""
+    return tuple(range(every, generations + 1, every))
+
+
+def bias_rule(table_fitness: Any, physics_fitness: Any) -> tuple[np.ndarray, float]:
+    """Fitness biasing: (b per tested genome, the population's mean b).
+
+    b = physics fitness / table fitness, both the mean squares over the same M starts. A
+    genome without a ratio (table fitness 0, or no physics run that finished: NaN) gets no b
+    of its own (NaN here) and is biased by the mean. The mean is over the defined b; 1 when
+    none is defined."""
+    t = np.asarray(table_fitness, dtype=np.float64)
+    p = np.asarray(physics_fitness, dtype=np.float64)
+    ok = (t > 0.0) & np.isfinite(p)
+    b = np.full(t.shape, np.nan)
+    b[ok] = p[ok] / t[ok]
+    return b, float(b[ok].mean()) if ok.any() else 1.0
+
+
+def section_keys(sections: np.ndarray) -> list[bytes]:
+    """One key per section (its packed bits): equal keys, equal genomes."""
+    n = sections.shape[0]
+    return [row.tobytes() for row in np.packbits(sections.reshape(n, -1), axis=1)]
+
+
+@dataclass(frozen=True)
+class Bias:
+    """A population's fitness bias from its last punctuation: each tested genome keeps its own
+    b (matched by its bits, wherever and however often it appears) while it survives; every
+    other individual gets the mean."""
+
+    own: dict[bytes, float] = field(default_factory=dict)
+    mean: float = 1.0
+
+    def factors(self, sections: np.ndarray) -> np.ndarray:
+        """(P,) bias of each section."""
+        return np.array([self.own.get(k, self.mean) for k in section_keys(sections)])
+
+
+def corrected_table(
+    base: np.ndarray, residual_sum: np.ndarray, count: np.ndarray, min_samples: int
+) -> np.ndarray:
+    """The model's correction: each gait's row = base row + its mean residual (physics move −
+    base row, pooled over every counted cycle so far) once ``count`` ≥ ``min_samples``; a gait
+    observed less keeps its base row. Checked against the table bounds."""
+    base = validate_table(base)
+    n = np.asarray(count, dtype=np.float64)
+    mean = np.asarray(residual_sum, dtype=np.float64) / np.maximum(n, 1.0)[:, None]
+    use = n >= max(int(min_samples), 1)
+    return validate_table(np.where(use[:, None], base + mean, base), name="corrected gait table")
+
+
+def table_error(
+    gaits: np.ndarray, residuals: np.ndarray, base: np.ndarray, in_use: np.ndarray
+) -> dict[str, float]:
+    """Mean |physics move − row of the table in use| per column over the counted cycles (the
+    residuals are against ``base``), and the number of cycles."""
+    r = np.asarray(residuals, dtype=np.float64).reshape(-1, 3)
+    gaits = np.asarray(gaits, dtype=np.int64)
+    err = np.abs(r - (in_use - base)[gaits]).mean(axis=0) if len(r) else np.full(3, np.nan)
+    return {c: _num(v) for c, v in zip(COLUMNS, err, strict=True)} | {"cycles": len(r)}
+
+
+def residual_sums(gaits: np.ndarray, residuals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(sum of residuals (16, 3), count (16,)) per gait."""
+    total = np.zeros((N_GAITS, 3))
+    np.add.at(total, np.asarray(gaits, dtype=np.int64), np.asarray(residuals).reshape(-1, 3))
+    return total, np.bincount(np.asarray(gaits, dtype=np.int64), minlength=N_GAITS)
+
+
+def top_distinct(fitness: np.ndarray, sections: np.ndarray, n: int) -> list[int]:
+    """Indices of the ``n`` best distinct genomes by ``fitness`` (ties: lower index first)."""
+    keys = section_keys(sections)
+    seen: set[bytes] = set()
+    out: list[int] = []
+    for i in np.argsort(-np.asarray(fitness), kind="stable"):
+        if keys[i] not in seen:
+            seen.add(keys[i])
+            out.append(int(i))
+            if len(out) == n:
+                break
+    return out
+
+
+def _num(v: Any) -> float | None:
+    """A float for JSON, None for NaN."""
+    v = float(v)
+    return v if np.isfinite(v) else None
+
+
+# --------------------------------------------------------------------------- seeds, state
+
+
+def anytime_rng(seed: int, *key: int) -> np.random.Generator:
+    """The generator of one of anytime's own draws: ``SeedSequence([seed, anytime id, *key])``
+    (key (0,): the final test; (1, g): the punctuation at generation g)."""
+    seq = np.random.SeedSequence([int(seed), STAGE_IDS["anytime"], *key])
+    return np.random.Generator(np.random.PCG64(seq))
+
+
+def final_starts(seed: int, n: int, world: WorldSettings) -> tuple[np.ndarray, int]:
+    """(start poses (n, 3), servo-noise seed) of the final test, shared by every population."""
+    rng = anytime_rng(seed, 0)
+    return coverage_starts(rng, n, world), int(rng.integers(2**62))
+
+
+def pooled_residuals(
+    records: dict[int, dict[str, Any]], upto: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(sum (16, 3), count (16,)) of the residuals of every punctuation at generation ≤ upto,
+    added in generation order."""
+    total, count = np.zeros((N_GAITS, 3)), np.zeros(N_GAITS, dtype=np.int64)
+    for g in sorted(records):
+        if g <= upto:
+            total += np.asarray(records[g]["residual_sum"], dtype=np.float64)
+            count += np.asarray(records[g]["residual_count"], dtype=np.int64)
+    return total, count
+
+
+def model_table(
+    base: GaitTable, records: dict[int, dict[str, Any]], upto: int, settings: AnytimeSettings
+) -> GaitTable:
+    """The table the GA uses after the punctuations at generation ≤ ``upto``: ``base`` unless
+    the method is ``model``."""
+    if settings.method != "model" or not any(g <= upto for g in records):
+        return base
+    values = corrected_table(base.values, *pooled_residuals(records, upto), settings.min_samples)
+    return GaitTable(values, meta=base.meta, source=f"{base.source}, corrected to gen {upto}")
+
+
+def population_bias(records: dict[int, dict[str, Any]], k: int, upto: int) -> Bias:
+    """Population ``k``'s bias after the punctuations at generation ≤ ``upto`` (method bias)."""
+    last = [g for g in records if g <= upto]
+    if not last:
+        return Bias()
+    rec = records[max(last)]
+    own = {
+        _key(t["section"]): float(t["ratio"])
+        for t in rec["tested"]
+        if t["population"] == k and t["ratio"] is not None
+    }
+    return Bias(own, float(rec["bias"][str(k)]))
+
+
+def _key(text_genes: list[str]) -> bytes:
+    """The key of a section recorded as text, one gene a line."""
+    return section_keys(parse_chromosome("\n".join(text_genes))[None])[0]
+
+
+def _genes(section: np.ndarray) -> list[str]:
+    return format_chromosome(section).splitlines()
+
+
+# --------------------------------------------------------------------------- punctuations
+
+
+def _tested(
+    runs: list[PopulationRun], fitness: dict[int, np.ndarray], top: int
+) -> list[tuple[int, int, int]]:
+    """(population, rank, index) of every genome a punctuation tests."""
+    return [
+        (r.k, rank, i)
+        for r in runs
+        for rank, i in enumerate(top_distinct(fitness[r.k], r.pop, top))
+    ]
+
+
+def _measure(
+    g: int, runs: list[PopulationRun], chosen: list[tuple[int, int, int]], *, stage: Stage,
+    in_use: GaitTable, base: GaitTable, ga: GASettings, world: WorldSettings,
+    settings: AnytimeSettings, test_in_physics: PhysicsTester,
+) -> dict[str, Any]:  # fmt: skip
+    """Run the chosen genomes in physics and in the table world; the punctuation's record."""
+    rng = anytime_rng(ga.seed, 1, g)
+    starts = stage.starts(rng, settings.physics_starts, world)
+    seed = int(rng.integers(2**62))
+    by_k = {r.k: r for r in runs}
+    sections = np.stack([by_k[k].pop[i] for k, _, i in chosen])
+    short = dataclasses.replace(stage, max_steps=settings.physics_steps)
+    table_squares = evaluate_sections(sections, starts, short, in_use, world)[0]
+    t0 = time.perf_counter()
+    measured = test_in_physics(stage.genomes(sections), starts, seed, base.values)
+    wall = time.perf_counter() - t0
+    m = settings.physics_starts
+    if len(measured) != len(chosen) * m:
+        raise AnytimeError(f"physics returned {len(measured)} runs for {len(chosen) * m} jobs")
+    tested = []
+    for c, (k, rank, i) in enumerate(chosen):
+        mine = measured[c * m : (c + 1) * m]
+        ok = [run.squares for run in mine if run.squares is not None]
+        tested.append({
+            "population": k, "rank": rank, "index": i, "section": _genes(sections[c]),
+            "table_fitness": float(table_squares[c].mean()),
+            "physics_fitness": float(np.mean(ok)) if ok else None,
+            "table_squares": table_squares[c].tolist(),
+            "physics_squares": [run.squares for run in mine],
+            "physics_inner_squares": [run.inner_squares for run in mine],
+            "physics_ends": [run.end for run in mine],
+            "errors": [run.error for run in mine if run.error],
+        })  # fmt: skip
+    means = _apply_bias_rule(tested, runs)
+    gaits = np.concatenate([run.gaits for run in measured]).astype(np.int64)
+    res = np.concatenate([run.residuals.reshape(-1, 3) for run in measured])
+    total, count = residual_sums(gaits, res)
+    return {
+        "generation": g,
+        "method": settings.method,
+        "starts": starts.tolist(),
+        "noise_seed": seed,
+        "tested": tested,
+        "bias": means if settings.method == "bias" else None,
+        "table_error": table_error(gaits, res, base.values, in_use.values),
+        "table_in_use": in_use.values.tolist(),
+        "residual_sum": total.tolist(),
+        "residual_count": count.tolist(),
+        "physics_cycles": sum(run.cycles for run in measured),
+        "physics_runs": len(measured),
+        "physics_errors": sum(run.error is not None for run in measured),
+        "physics_wall_s": wall,
+    }
+
+
+def _apply_bias_rule(tested: list[dict[str, Any]], runs: list[PopulationRun]) -> dict[str, float]:
+    """Set each tested genome's ``ratio`` b (``bias_rule``; None where undefined); returns per
+    population the mean b that its other individuals get."""
+    means = {}
+    for r in runs:
+        mine = [t for t in tested if t["population"] == r.k]
+        phys = [np.nan if t["physics_fitness"] is None else t["physics_fitness"] for t in mine]
+        b, means[str(r.k)] = bias_rule([t["table_fitness"] for t in mine], phys)
+        for t, v in zip(mine, b, strict=True):
+            t["ratio"] = _num(v)
+    return means
+
+
+def load_records(folder: Path, generations: tuple[int, ...]) -> dict[int, dict[str, Any]]:
+    """The punctuation records in ``folder/punctuations`` (a resumed run reuses them)."""
+    records = {}
+    for path in sorted((folder / RECORDS).glob("gen*.json")):
+        rec = read_json(path, what="punctuation record", error=AnytimeError)
+        try:
+            g = int(rec["generation"])
+            ok = path.name == f"gen{g:04d}.json" and g in generations
+            ok = ok and np.shape(rec["residual_sum"]) == (N_GAITS, 3)
+            ok = ok and np.shape(rec["residual_count"]) == (N_GAITS,)
+            ok = ok and isinstance(rec["tested"], list)
+        except (KeyError, TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise AnytimeError(f"{path}: not a punctuation record of this run; delete it")
+        records[g] = rec
+    return records
+
+
+def _check_replay(
+    rec: dict[str, Any], chosen: list[tuple[int, int, int]], runs: list[PopulationRun], path: Path
+) -> None:
+    """A resumed population must choose the genomes its record tested."""
+    by_k = {r.k: r for r in runs}
+    want = {(t["population"], t["rank"]): (t["index"], t["section"]) for t in rec["tested"]}
+    for k, rank, i in chosen:
+        if want.get((k, rank)) != (i, _genes(by_k[k].pop[i])):
+            raise AnytimeError(
+                f"{path}: population {k} does not replay to the genomes this record tested; "
+                "the run folder is inconsistent: rerun with --force"
+            )
+
+
+# --------------------------------------------------------------------------- the loop
+
+
+@dataclass
+class AnytimeResult:
+    """Evolved populations, the punctuation records and the table in use at the end."""
+
+    results: list[PopulationResult]
+    records: list[dict[str, Any]]
+    """In generation order."""
+    table: GaitTable
+    """The table the GA used last (``model``: corrected; else the base table)."""
+    physics_wall_s: float = 0.0
+    """Wall time of the punctuations measured in this call (a resumed run's replayed ones
+    cost nothing)."""
+
+
+def evolve_anytime(
+    folder: Path,
+    *,
+    stage: Stage,
+    table: GaitTable,
+    ga: GASettings,
+    world: WorldSettings,
+    settings: AnytimeSettings,
+    test_in_physics: PhysicsTester,
+    settings_text: str,
+    resume: bool,
+    on_generation: OnGeneration | None = None,
+    on_punctuation: OnPunctuation | None = None,
+    table_meta: dict[str, Any] | None = None,
+) -> AnytimeResult:
+    """Evolve ``ga.populations`` populations of ``stage`` (coverage) in lockstep in ``folder``
+    (already claimed: ``infra.rundir``) with physics punctuations (module docstring).
+
+    ``settings_text`` is stored in the checkpoints and checked on resume; ``table_meta`` goes
+    into each corrected table's file (method ``model``: ``tables/gen{g:04d}.json``)."""
+    folder = Path(folder)
+    gens = punctuation_generations(ga.generations, settings.every)
+    _, seqs = stage_seeds(ga.seed, "coverage", ga.populations)
+    runs = [
+        PopulationRun(k, stage, folder, seed_seq=seqs[k], table=table, ga=ga, world=world,
+                      settings_text=settings_text, resume=resume)
+        for k in range(ga.populations)
+    ]  # fmt: skip
+    records = load_records(folder, gens) if resume else {}
+    physics_s = 0.0
+    while live := [r for r in runs if not r.finished]:
+        g = min(r.generation for r in live)
+        active = [r for r in live if r.generation == g]
+        in_use = model_table(table, records, g - 1, settings)
+        evaluated: dict[int, Generation] = {}
+        for r in active:
+            r.table = in_use
+            evaluated[r.k] = r.evaluate()
+        fitness = _in_force(active, evaluated, records, g - 1, settings)
+        if g in gens:
+            chosen = _tested(active, fitness, settings.top)
+            path = folder / RECORDS / f"gen{g:04d}.json"
+            if g in records:
+                _check_replay(records[g], chosen, active, path)
+            elif len(active) < len(runs):
+                raise AnytimeError(f"{path}: missing while other populations are past it")
+            else:
+                rec = _measure(
+                    g, active, chosen, stage=stage, in_use=in_use, base=table, ga=ga,
+                    world=world, settings=settings, test_in_physics=test_in_physics,
+                )  # fmt: skip
+                records[g] = _save(folder, rec, table, records | {g: rec}, settings, table_meta)
+                physics_s += rec["physics_wall_s"]
+            fitness = _after(active, evaluated, records, g, stage, table, world, settings)
+            if on_punctuation is not None:
+                on_punctuation(records[g])
+        for r in active:
+            record = r.commit(fitness[r.k])
+            if on_generation is not None:
+                on_generation(record)
+    results = [r.result for r in runs]
+    assert all(res is not None for res in results)
+    return AnytimeResult(
+        results,  # type: ignore[arg-type]
+        [records[g] for g in sorted(records)],
+        model_table(table, records, ga.generations, settings),
+        physics_s,
+    )
+
+
+def _in_force(
+    active: list[PopulationRun], evaluated: dict[int, Generation],
+    records: dict[int, dict[str, Any]], upto: int, settings: AnytimeSettings,
+) -> dict[int, np.ndarray]:  # fmt: skip
+    """Each population's fitness in force: the table fitness, times its bias (method bias)."""
+    out = {}
+    for r in active:
+        f = evaluated[r.k].fitness
+        if settings.method == "bias":
+            f = f * population_bias(records, r.k, upto).factors(r.pop)
+        out[r.k] = f
+    return out
+
+
+def _after(
+    active: list[PopulationRun], evaluated: dict[int, Generation],
+    records: dict[int, dict[str, Any]], g: int, stage: Stage, base: GaitTable,
+    world: WorldSettings, settings: AnytimeSettings,
+) -> dict[int, np.ndarray]:  # fmt: skip
+    """The fitness in force once punctuation ``g`` applies: the new bias, or the generation
+    re-evaluated on the corrected table (from the same starts)."""
+    if settings.method != "model":
+        return _in_force(active, evaluated, records, g, settings)
+    table = model_table(base, records, g, settings)
+    return {
+        r.k: evaluate_sections(r.pop, evaluated[r.k].starts, stage, table, world)[0].mean(axis=1)
+        for r in active
+    }
+
+
+def _save(
+    folder: Path, rec: dict[str, Any], base: GaitTable, records: dict[int, dict[str, Any]],
+    settings: AnytimeSettings, table_meta: dict[str, Any] | None,
+) -> dict[str, Any]:  # fmt: skip
+    """Write a new punctuation (its corrected table first, for method model); returns the
+    record as read back from JSON, so a resumed run computes with exactly these numbers."""
+    g = rec["generation"]
+    if settings.method == "model":
+        total, count = pooled_residuals(records, g)
+        values = corrected_table(base.values, total, count, settings.min_samples)
+        doc = table_to_json(
+            values, source=f"{base.source}, corrected by physics to generation {g}",
+            generation=g, min_samples=settings.min_samples, samples=count.tolist(),
+            **(table_meta or {}),
+        )  # fmt: skip
+        atomic_write_json(folder / TABLES / f"gen{g:04d}.json", doc)
+    path = atomic_write_json(folder / RECORDS / f"gen{g:04d}.json", rec)
+    return read_json(path, what="punctuation record", error=AnytimeError)
+
+
+__all__ = [
+    "METHODS",
+    "RECORDS",
+    "TABLES",
+    "AnytimeError",
+    "AnytimeResult",
+    "AnytimeSettings",
+    "Bias",
+    "OnPunctuation",
+    "PhysicsRun",
+    "PhysicsTester",
+    "anytime_rng",
+    "bias_rule",
+    "corrected_table",
+    "evolve_anytime",
+    "final_starts",
+    "load_records",
+    "model_table",
+    "population_bias",
+    "pooled_residuals",
+    "punctuation_generations",
+    "residual_sums",
+    "section_keys",
+    "table_error",
+    "top_distinct",
+]

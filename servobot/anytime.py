@@ -1,0 +1,289 @@
+"""Anytime learning with MuJoCo as the real robot: ``run_anytime(out, ...)`` (``servobot
+anytime``).
+
+Coverage learning (SPEC §5, the navigation section fixed) runs on the table world
+(``evolve.anytime.evolve_anytime``); every K generations the T best genomes of each population
+walk in physics from M seeded coverage starts (``measure_run``: the validation's physics world
+and servo noise, every gait cycle logged, ``calibration.residuals``), and the results bias
+the fitness or correct the gait table. At the end each population's best runs in both worlds
+from ``final_starts`` fresh starts (``servobot.validate.validate``). Every batch of physics
+runs goes to one executor (``infra.executors``); the results do not depend on which.
+
+Layout of ``out/anytime`` (a run folder: lock, ``settings.json``, ``--resume``, ``--force``)::
+
+    summary.json              method, punctuations, final, physics_wall_s, wall_s, ...
+    best_pop{k}.txt           each population's final best (16 genes)
+    figure_anytime.png        physics fitness of the best by generation (and the baseline's)
+    punctuations/gen{g:04d}.json   every punctuation: tested genomes, both fitnesses, residuals
+    tables/gen{g:04d}.json    method model: the corrected gait table after each punctuation
+    final/pop{k}.json         the final test of population k (both worlds, per start)
+    checkpoints/, populations/, history_pop{k}.csv   as ``servobot evolve`` writes them
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from calibration.residuals import LoggingWorld, residuals
+from evolve.anytime import (
+    AnytimeError,
+    AnytimeResult,
+    AnytimeSettings,
+    OnPunctuation,
+    PhysicsRun,
+    PhysicsTester,
+    evolve_anytime,
+    final_starts,
+    punctuation_generations,
+)
+from evolve.codec import format_chromosome, write_chromosome
+from evolve.interpreter import END_NAMES, run
+from evolve.population import OnGeneration
+from evolve.settings import GASettings, WorldSettings
+from evolve.stages import (
+    DEFAULT_GA,
+    DEFAULT_WORLD,
+    STAGE_FILES,
+    check_ga,
+    coverage_stage,
+    stage_settings_doc,
+)
+from evolve.table import GaitTable
+from infra.bounds import check_need
+from infra.executors import Executor, Failed, make_executor
+from infra.io import atomic_write_json, read_json
+from infra.rundir import run_folder
+from servo_mj.robot.model import ModelFile, model_label, model_sha256
+from servo_mj.robot.settings import PhysicsSettings
+from servo_mj.world.arena import ArenaSettings, station_distance_cm
+from servobot import anytime_report as report
+from servobot.validate import MODE, StartJob, jsonable, physics_world, validate, validation_need
+
+ANYTIME_FILES = (
+    *STAGE_FILES, "punctuations/gen*.json", "tables/gen*.json", "final/pop*.json",
+    "figure_anytime.png",
+)  # fmt: skip
+"""Every file ``run_anytime`` writes in ``out/anytime`` besides ``settings.json``."""
+DEFAULT_ANYTIME = AnytimeSettings()
+"""The default punctuations (frozen, shared)."""
+
+
+@dataclass(frozen=True)
+class PunctuationJob:
+    """One tested genome from one start in physics (picklable plain data)."""
+
+    run: StartJob
+    """The run: chromosome, start, base table (the residuals' reference), physics, seeds."""
+    station_margin_cm: float
+    """Cycles beginning closer than this to the station block are not counted."""
+
+
+def measure_run(job: PunctuationJob) -> PhysicsRun:
+    """Run one start in physics (worker function): squares reached and the residuals of the
+    cycles that count; a physics failure becomes the run's ``error``."""
+    sj = job.run
+    world = LoggingWorld(physics_world(sj))
+    try:
+        res = run(sj.bits, world, mode=MODE, settings=sj.world, max_steps=sj.max_steps)
+    except Exception as exc:  # noqa: BLE001 - a physics failure is this run's record
+        return PhysicsRun(None, None, f"{type(exc).__name__}: {exc}")
+    counted = [
+        (gait, r)
+        for (gait, _, r), (_, before, _) in zip(residuals(world.log, sj.table), world.log,
+                                                strict=True)
+        if station_distance_cm(before[0], before[1], sj.world, sj.arena) >= job.station_margin_cm
+    ]  # fmt: skip
+    return PhysicsRun(
+        int(res.squares),
+        int(res.inner_squares),
+        None,
+        np.array([g for g, _ in counted], dtype=np.int64),
+        np.array([r for _, r in counted], dtype=np.float64).reshape(-1, 3),
+        len(world.log),
+        END_NAMES[int(res.end)],
+    )
+
+
+def physics_tester(
+    ex: Executor, *, world: WorldSettings, arena: ArenaSettings, physics: PhysicsSettings,
+    model: ModelFile, settings: AnytimeSettings, on_run: Callable[[], None] | None = None,
+) -> PhysicsTester:  # fmt: skip
+    """The ``PhysicsTester`` of ``evolve_anytime``: each (genome, start) one ``measure_run``
+    on ``ex``; ``on_run()`` after each (progress)."""
+
+    def test(genomes: np.ndarray, starts: np.ndarray, seed: int, base: np.ndarray) -> list:
+        jobs = [
+            PunctuationJob(
+                StartJob(index=m, bits=genome, start=tuple(float(v) for v in s), table=base,
+                         world=world, arena=arena, physics=physics,
+                         max_steps=settings.physics_steps, rrd_path=None, seed=seed,
+                         model=None if model is None else str(model)),
+                settings.station_margin_cm,
+            )
+            for genome in genomes
+            for m, s in enumerate(starts)
+        ]  # fmt: skip
+        out: list[PhysicsRun] = [PhysicsRun(None, None, "not run")] * len(jobs)
+        with contextlib.closing(ex.imap(measure_run, jobs)) as done:  # stops workers on Ctrl-C
+            for i, outcome in done:
+                failed = isinstance(outcome, Failed)
+                out[i] = PhysicsRun(None, None, outcome.message) if failed else outcome.value
+                if on_run is not None:
+                    on_run()
+        return out
+
+    return test
+
+
+def check_anytime(ga: GASettings, settings: AnytimeSettings, workers: int | None) -> None:
+    """Refuse sizes whose table evolution or physics runs the machine cannot give."""
+    check_ga(ga, WorldSettings().coverage_steps)
+    punct = len(punctuation_generations(ga.generations, settings.every))
+    runs = punct * ga.populations * settings.top * settings.physics_starts
+    runs += ga.populations * settings.final_starts
+    need, _ = validation_need(runs, settings.physics_steps, workers, False)
+    check_need(need, f"{runs} physics runs (punctuations and final) × {settings.physics_steps} "
+                     "steps")  # fmt: skip
+
+
+def read_baseline(path: Path, seed: int) -> dict[str, Any]:
+    """The summary of the control run in ``path`` (a ``--method none`` run's DIR, or its
+    ``anytime`` folder); ``AnytimeError`` unless it is one with the same seed."""
+    path = Path(path)
+    file = next((p for p in (path / "anytime/summary.json", path / "summary.json") if p.exists()),
+                path / "anytime/summary.json")  # fmt: skip
+    doc = read_json(file, what="anytime summary", error=AnytimeError)
+    if not isinstance(doc, dict) or not {"method", "best_by_generation", "final"} <= set(doc):
+        raise AnytimeError(f"{file}: not the summary of a servobot anytime run")
+    if doc["method"] != "none":
+        raise AnytimeError(f"{file}: the baseline must be a --method none run, not {doc['method']}")
+    theirs = doc.get("settings", {}).get("GASettings", {}).get("seed")
+    if theirs != seed:
+        raise AnytimeError(f"{file}: the baseline ran with seed {theirs}, this run with {seed}")
+    return doc
+
+
+def run_anytime(
+    out: Path,
+    *,
+    navigation: np.ndarray,
+    table: GaitTable,
+    ga: GASettings = DEFAULT_GA,
+    world: WorldSettings = DEFAULT_WORLD,
+    settings: AnytimeSettings = DEFAULT_ANYTIME,
+    physics: PhysicsSettings | None = None,
+    arena: ArenaSettings | None = None,
+    model: ModelFile = None,
+    executor: Executor | None = None,
+    baseline: Path | None = None,
+    resume: bool = False,
+    force: bool = False,
+    on_generation: OnGeneration | None = None,
+    on_punctuation: OnPunctuation | None = None,
+    on_physics_run: Callable[[], None] | None = None,
+) -> dict[str, Any]:
+    """Anytime learning into ``out/anytime`` (module docstring); returns the summary.
+
+    ``table``: the GA's base model (check it against ``model`` first:
+    ``servobot.validate.load_checked_table``); ``physics`` (default ``PhysicsSettings()``,
+    servo noise as in validation), ``arena``, ``model``: the physics robot. ``executor``
+    (default a process pool of one worker per core) runs every batch of physics runs.
+    ``baseline``: a ``method none`` run of the same seed, drawn beside this one in the figure.
+    Summary keys: ``method``, ``punctuations`` (per punctuation: ``generation``, ``tested``
+    (``population``, ``index``, ``rank``, ``table_fitness``, ``physics_fitness``, ``ratio``),
+    ``bias`` (method bias: per population the mean ratio the untested get) and
+    ``table_error``), ``final`` (``table_inner_percent``, ``physics_inner_percent``, their
+    ``gap_pp``, per population), ``physics_runs``, ``physics_wall_s`` (the punctuations'
+    physics, over the whole run), ``final_wall_s``, ``table_wall_s`` (the evolution without its
+    physics, this invocation), ``wall_s`` (this invocation), ``settings``."""
+    t0 = time.perf_counter()
+    physics = physics or PhysicsSettings()
+    arena = arena or ArenaSettings()
+    check_anytime(ga, settings, None)
+    control = None if baseline is None else read_baseline(baseline, ga.seed)
+    stage = dataclasses.replace(coverage_stage(world, navigation), extra_settings=(settings,))
+    doc = stage_settings_doc(stage, ga, world, table) | {
+        "command": "anytime",
+        "PhysicsSettings": jsonable(physics),
+        "ArenaSettings": jsonable(arena),
+        "model": model_label(model),
+        "model_sha256": model_sha256(model),
+    }
+    folder = Path(out) / "anytime"
+    ex = executor or make_executor(None, None)
+    kw = dict(world=world, arena=arena, physics=physics, model=model, settings=settings)
+    with run_folder(folder, doc, owned=ANYTIME_FILES, resume=resume, force=force):
+        t1 = time.perf_counter()
+        result = evolve_anytime(
+            folder, stage=stage, table=table, ga=ga, world=world, settings=settings,
+            test_in_physics=physics_tester(ex, on_run=on_physics_run, **kw),
+            settings_text=json.dumps(doc, sort_keys=True), resume=resume,
+            on_generation=on_generation, on_punctuation=on_punctuation,
+            table_meta={"model": doc["model"], "model_sha256": doc["model_sha256"]},
+        )  # fmt: skip
+        evolution_s = time.perf_counter() - t1
+        finals = _finals(folder, result, stage, ga, ex, on_physics_run, **kw)
+        summary = report.summary(result, finals, settings, doc)
+        summary |= {
+            "table_wall_s": evolution_s - result.physics_wall_s,
+            "wall_s": time.perf_counter() - t0,
+            "resumed": bool(resume),
+            "baseline": None if baseline is None else str(baseline),
+        }
+        for k, res in enumerate(result.results):
+            full = stage.genomes(res.best[None])[0]
+            head = report.provenance(k, ga, table, settings, summary["final"]["populations"][k])
+            write_chromosome(folder / f"best_pop{k}.txt", full, head)
+        report.figure(folder / "figure_anytime.png", summary, control)
+        atomic_write_json(folder / "summary.json", summary)
+    return summary
+
+
+def _finals(
+    folder: Path, result: AnytimeResult, stage: Any, ga: GASettings, ex: Executor,
+    on_run: Callable[[], None] | None, *, world: WorldSettings, arena: ArenaSettings,
+    physics: PhysicsSettings, model: ModelFile, settings: AnytimeSettings,
+) -> list[dict[str, Any]]:  # fmt: skip
+    """Each population's final best from the same fresh starts, in both worlds (the table
+    world on the table the GA used last); a finished population's test is kept in
+    ``final/pop{k}.json`` and reused on resume."""
+    starts, seed = final_starts(ga.seed, settings.final_starts, world)
+    out = []
+    for res in result.results:
+        full = stage.genomes(res.best[None])[0]
+        key = {
+            "population": res.index, "chromosome": format_chromosome(full),
+            "table": result.table.values.tolist(), "starts": starts.tolist(), "seed": seed,
+        }  # fmt: skip
+        path = folder / "final" / f"pop{res.index}.json"
+        done = read_json(path, what="final test", error=AnytimeError) if path.exists() else {}
+        if {k: done.get(k) for k in key} != key:
+            rep = validate(
+                full, starts, table=result.table, world=world, physics=physics, arena=arena,
+                executor=ex, max_steps=settings.physics_steps, seed=seed, model=model,
+                on_run=None if on_run is None else lambda _rec: on_run(),
+            )  # fmt: skip
+            done = key | {"summary": rep["summary"], "runs": rep["runs"]}
+            atomic_write_json(path, done)
+        out.append(done)
+    return out
+
+
+__all__ = [
+    "ANYTIME_FILES",
+    "PunctuationJob",
+    "check_anytime",
+    "measure_run",
+    "physics_tester",
+    "read_baseline",
+    "run_anytime",
+]
