@@ -75,6 +75,12 @@ class Stage:
     robot per run (the colony stage passes ``evaluate_colony`` bound to its settings)."""
     extra_settings: tuple[Any, ...] = ()
     """Further settings dataclasses saved with the stage and checked on resume."""
+    training_starts: Callable[[np.random.Generator, int, WorldSettings, int], np.ndarray] | None = (
+        None
+    )
+    """``training_starts(rng, n, world, generation)``: the start poses of a generation's runs
+    when they are not ``starts``' (the navigation stage's growing start region); None:
+    ``starts``. The test starts always come from ``starts``."""
 
     def genomes(self, sections: np.ndarray) -> np.ndarray:
         """Chromosomes the kernel runs: the sections, or sections + navigation (P, 16, 30)."""
@@ -148,6 +154,14 @@ def stage_seeds(
     depend on how many populations run."""
     root = np.random.SeedSequence([int(seed), STAGE_IDS[stage]])
     return SpawnedSeeds(root, 0, 1)[0], SpawnedSeeds(root, 1, populations)
+
+
+def selection_rng(seed: int, stage: str) -> np.random.Generator:
+    """The generator of a stage's selection starts (navigation: the poses on which the
+    candidate sections are compared): ``SeedSequence([seed, stage id, 1])``, independent of
+    the test starts and of every population."""
+    seq = np.random.SeedSequence([int(seed), STAGE_IDS[stage], 1])
+    return np.random.Generator(np.random.PCG64(seq))
 
 
 def save_generations(ga: GASettings) -> tuple[int, ...]:
@@ -274,7 +288,11 @@ class PopulationRun:
             raise StageError(f"population {self.k} has already finished")
         if self.generation % CHECKPOINT_EVERY == 0:
             self._checkpoint()
-        starts = self.stage.starts(self.rng, self.ga.starts_per_generation, self.world)
+        n, draw = self.ga.starts_per_generation, self.stage.training_starts
+        if draw is None:
+            starts = self.stage.starts(self.rng, n, self.world)
+        else:
+            starts = draw(self.rng, n, self.world, self.generation)
         run_fit, ev, first, inverse = evaluate_sections(
             self.pop, starts, self.stage, self.table, self.world
         )
@@ -409,6 +427,7 @@ __all__ = [
     "generation_record",
     "run_population_job",
     "save_generations",
+    "selection_rng",
     "stage_seeds",
     "write_history",
 ]

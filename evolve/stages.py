@@ -2,7 +2,9 @@
 
 Each stage evolves ``ga.populations`` independent populations of 8-gene sections
 (``evolve.population``: the generation loop, checkpoints, seeds), then tests the finalists:
-navigation picks its section, coverage measures Figure 9 and draws Figures 8 and 10.
+navigation picks its section among the saved bests (``NavigationSettings``), coverage
+measures Figure 9, where its finalists hand control to navigation (``evolve.handoff``) and
+draws Figures 8 and 10.
 
 Before anything is allocated or written, a stage checks that its sizes fit the machine
 (``stage_need``, ``infra.bounds``) and takes its folder (``infra.rundir.run_folder``: an OS
@@ -15,7 +17,7 @@ Layout under the run folder ``out`` (the CLI's ``--out DIR``)::
     navigation/best_pop{k}.txt navigation/history_pop{k}.csv
     navigation/populations/pop{k}_gen{g:04d}.npz  (population, fitness, best, starts)
     navigation/checkpoints/pop{k}.npz             (resume state; pop{k}_final.npz when done)
-    coverage/...  the same, plus figure9.{csv,json,png}, best_pop{k}.txt,
+    coverage/...  the same, plus figure9.{csv,json,png}, best_pop{k}.txt, handoffs.csv,
                   figure10_pop{k}.png, summary.json;  figure8.png in ``out`` itself.
 """
 
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import functools
 import io
 import json
 import os
@@ -36,6 +39,7 @@ import numpy as np
 
 from evolve.checkpoint import read_npz
 from evolve.codec import GENE_BITS, SECTION_GENES, write_chromosome
+from evolve.handoff import collect_handoffs, handoff_rate, write_handoffs
 from evolve.interpreter import END_DOCKED
 from evolve.population import (
     CHECKPOINT_EVERY,
@@ -50,10 +54,17 @@ from evolve.population import (
     generation_record,
     run_population_job,
     save_generations,
+    selection_rng,
     stage_seeds,
 )
-from evolve.settings import GASettings, WorldSettings, navigation_ga_settings, settings_json
-from evolve.starts import coverage_starts, navigation_starts
+from evolve.settings import (
+    GASettings,
+    NavigationSettings,
+    WorldSettings,
+    navigation_ga_settings,
+    settings_json,
+)
+from evolve.starts import coverage_starts, navigation_starts, navigation_training_starts
 from evolve.table import GaitTable
 from infra.bounds import LIMITS, Limits, Need, check_int, check_need
 from infra.executors import BatchError, Executor, Failed, RayExecutor, values_or_raise
@@ -66,9 +77,13 @@ DEFAULT_WORLD = WorldSettings()
 """The SPEC's world (frozen, shared default)."""
 DEFAULT_GA = GASettings()
 """The SPEC's coverage GA settings (frozen, shared default)."""
+DEFAULT_NAVIGATION = NavigationSettings()
+"""How the navigation stage chooses its section by default (frozen, shared)."""
+NAVIGATION_GENERATIONS = navigation_ga_settings().generations
+"""Generations of a navigation stage by default (SPEC §6: 1024)."""
 STAGE_FILES = (
     "summary.json", "best.txt", "best_pop*.txt", "history_pop*.csv", "figure9.*",
-    "figure10_pop*.png", "populations/pop*_gen*.npz", "checkpoints/pop*.npz",
+    "figure10_pop*.png", "handoffs.csv", "populations/pop*_gen*.npz", "checkpoints/pop*.npz",
 )  # fmt: skip
 """Every file a stage writes in its folder besides ``settings.json``: what ``force`` deletes."""
 RUN_RESULT_BYTES = 64
@@ -97,13 +112,29 @@ def coverage_run_fitness(ev: Any, starts: np.ndarray, world: WorldSettings) -> n
     return np.asarray(ev.squares, dtype=np.float64)
 
 
-def navigation_stage(world: WorldSettings) -> Stage:
+def navigation_stage(
+    world: WorldSettings,
+    navigation: NavigationSettings = DEFAULT_NAVIGATION,
+    generations: int = NAVIGATION_GENERATIONS,
+) -> Stage:
+    """The navigation stage (SPEC §6) of ``generations`` generations; ``navigation`` (the
+    growing training start region, how the final section is chosen) is saved with its
+    settings."""
+    ramp = navigation.ramp_generations(generations)
     return Stage(
         "navigation",
         "navigation",
         world.navigation_steps,
         navigation_starts,
         navigation_run_fitness,
+        extra_settings=(navigation,),
+        training_starts=None
+        if ramp == 0
+        else functools.partial(
+            navigation_training_starts,
+            first_radius=navigation.first_start_radius,
+            ramp_generations=ramp,
+        ),
     )
 
 
@@ -260,6 +291,7 @@ def run_navigation(
     table: GaitTable,
     ga: GASettings | None = None,
     world: WorldSettings = DEFAULT_WORLD,
+    navigation: NavigationSettings = DEFAULT_NAVIGATION,
     resume: bool = False,
     force: bool = False,
     on_generation: OnGeneration | None = None,
@@ -271,92 +303,150 @@ def run_navigation(
     core), or each as one run of ``executor`` (``infra.executors``; progress then arrives
     per finished population): the same seeds give the same results either way.
 
-    Each population's final best runs from the same ``ga.test_starts`` fresh start poses;
-    the one with the highest mean run fitness becomes ``navigation/best.txt``. Summary keys:
-    ``dock_success`` (fraction of those starts the chosen section docks from),
-    ``mean_steps_to_dock``, ``chosen_population``, ``populations`` (per-population test
-    fitness, dock rate, final training fitness), ``wall_s``, ``settings``.
+    The final section is picked as ``navigation`` says (``NavigationSettings``): by default
+    the best individual of every saved generation of every population runs from
+    ``navigation.selection_starts`` fresh starts of their own seed, and the one that docks
+    most often there becomes ``navigation/best.txt``. It is then reported on the
+    ``ga.test_starts`` test starts, which the choice never saw. Summary keys:
+    ``dock_success`` (fraction of the test starts the chosen section docks from),
+    ``mean_steps_to_dock``, ``test_fitness``, ``chosen_population``, ``chosen_generation``,
+    ``selection`` (how it was chosen and its rates on the selection starts), ``candidates``
+    (every candidate's selection dock rate and fitness), ``populations`` (each population's
+    final best on the test starts: fitness, dock rate, final training fitness), ``wall_s``,
+    ``settings``.
     """
     ga = navigation_ga_settings() if ga is None else ga
-    stage = navigation_stage(world)
+    stage = navigation_stage(world, navigation, ga.generations)
     folder = Path(out) / "navigation"
     with _stage_folder(stage, folder, table, ga, world, resume, force) as doc:
-        return _navigation(stage, folder, doc, table, ga, world, resume, on_generation, executor)
+        t0 = time.perf_counter()
+        results, test_starts = _run_populations(
+            stage, folder, doc, table=table, ga=ga, world=world, resume=resume,
+            on_generation=on_generation, executor=executor,
+        )  # fmt: skip
+        summary = _navigation_summary(stage, folder, results, test_starts, table, ga, world,
+                                      navigation)  # fmt: skip
+        summary |= {"wall_s": time.perf_counter() - t0, "resumed": bool(resume), "settings": doc}
+        atomic_write_json(folder / "summary.json", summary)
+        return summary
 
 
-def _navigation(
-    stage: Stage, folder: Path, doc: dict[str, Any], table: GaitTable, ga: GASettings,
-    world: WorldSettings, resume: bool, on_generation: OnGeneration | None,
-    executor: Executor | None,
-) -> dict[str, Any]:  # fmt: skip
-    t0 = time.perf_counter()
-    results, test_starts = _run_populations(
-        stage, folder, doc, table=table, ga=ga, world=world, resume=resume,
-        on_generation=on_generation,
-        executor=executor,
-    )  # fmt: skip
-    bests = np.stack([r.best for r in results])
-    run_fit, ev, _, inverse = evaluate_sections(bests, test_starts, stage, table, world)
-    docked = (np.asarray(ev.end) == END_DOCKED)[inverse]
-    steps = np.asarray(ev.steps)[inverse]
-    test_fit = run_fit.mean(axis=1)
-    chosen = int(np.argmax(test_fit))
-    per_pop = []
+def choose_section(dock_rate: np.ndarray, fitness: np.ndarray, criterion: str) -> int:
+    """Index of the candidate a navigation stage keeps: the highest ``dock_rate`` (ties: the
+    highest mean run ``fitness``) for criterion ``"dock_rate"``, the highest ``fitness`` for
+    ``"fitness"``; remaining ties go to the lowest index."""
+    dock_rate, fitness = np.asarray(dock_rate, float), np.asarray(fitness, float)
+    if criterion == "fitness":
+        return int(np.argmax(fitness))
+    if criterion != "dock_rate":
+        raise StageError(f"criterion must be 'dock_rate' or 'fitness', got {criterion!r}")
+    return int(np.lexsort((-fitness, -dock_rate))[0])
+
+
+def navigation_candidates(
+    folder: Path, results: list[PopulationResult], ga: GASettings, nav: NavigationSettings
+) -> list[tuple[int, int, np.ndarray]]:
+    """(population, generation, section) of every section the choice compares: each
+    population's final best, and with ``nav.candidates == "saved"`` the best of every saved
+    generation before it too (read from ``populations/pop{k}_gen{g:04d}.npz``)."""
+    gens = save_generations(ga) if nav.candidates == "saved" else (ga.generations,)
+    out = []
     for r in results:
+        for g in gens:
+            if g == ga.generations:
+                best = r.best
+            else:
+                path = folder / "populations" / f"pop{r.index}_gen{g:04d}.npz"
+                best = read_npz(path, "saved population", ("best",), error=StageError)["best"]
+            out.append((r.index, g, np.asarray(best, dtype=np.uint8)))
+    return out
+
+
+def _dock_stats(
+    sections: np.ndarray, starts: np.ndarray, stage: Stage, table: GaitTable, world: WorldSettings
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per section: (mean run fitness, dock rate, mean steps to dock (NaN if none), docked
+    (C, S)) on ``starts``."""
+    run_fit, ev, _, inverse = evaluate_sections(sections, starts, stage, table, world)
+    docked = (np.asarray(ev.end) == END_DOCKED)[inverse]
+    steps = np.asarray(ev.steps, dtype=float)[inverse]
+    with np.errstate(invalid="ignore"):
+        mean_steps = np.where(docked, steps, 0.0).sum(axis=1) / docked.sum(axis=1)
+    return run_fit.mean(axis=1), docked.mean(axis=1), mean_steps, docked
+
+
+def _navigation_summary(
+    stage: Stage, folder: Path, results: list[PopulationResult], test_starts: np.ndarray,
+    table: GaitTable, ga: GASettings, world: WorldSettings, nav: NavigationSettings,
+) -> dict[str, Any]:  # fmt: skip
+    """Choose the section, write ``best.txt`` and ``best_pop{k}.txt``; the summary."""
+    cands = navigation_candidates(folder, results, ga, nav)
+    sel_starts = stage.starts(selection_rng(ga.seed, stage.name), nav.selection_starts, world)
+    sections = np.stack([c[2] for c in cands])
+    sel_fit, sel_dock, _, _ = _dock_stats(sections, sel_starts, stage, table, world)
+    c = choose_section(sel_dock, sel_fit, nav.criterion)
+    chosen_k, chosen_g, chosen = cands[c]
+    finals = np.stack([r.best for r in results])
+    fit, dock, steps, _ = _dock_stats(np.concatenate([chosen[None], finals]), test_starts,
+                                      stage, table, world)  # fmt: skip
+    per_pop = []
+    for j, r in enumerate(results, start=1):
         k = r.index
-        per_pop.append(
+        per_pop.append({
+            "population": k, "test_fitness": float(fit[j]), "dock_rate": float(dock[j]),
+            "mean_steps_to_dock": _maybe(steps[j]),
+            "final_training_fitness": float(r.history[-1, 1]),
+        })  # fmt: skip
+        extra = (f"test fitness {fit[j]:.4f}, docked {dock[j]:.0%} of {len(test_starts)} test "
+                 "starts")  # fmt: skip
+        write_chromosome(folder / f"best_pop{k}.txt", r.best,
+                         _provenance("navigation", k, ga, table, extra))  # fmt: skip
+    header = _provenance(
+        "navigation", chosen_k, ga, table,
+        f"chosen: the best of {len(cands)} candidates by {nav.criterion} on "
+        f"{len(sel_starts)} selection starts (docked {sel_dock[c]:.0%}); docked "
+        f"{dock[0]:.0%} of {len(test_starts)} fresh test starts",
+        generation=chosen_g,
+    )  # fmt: skip
+    write_chromosome(folder / "best.txt", chosen, header)
+    return {
+        "stage": "navigation",
+        "dock_success": float(dock[0]),
+        "mean_steps_to_dock": _maybe(steps[0]),
+        "test_fitness": float(fit[0]),
+        "test_starts": len(test_starts),
+        "chosen_population": chosen_k,
+        "chosen_generation": chosen_g,
+        "selection": {
+            **nav.to_dict(),
+            "dock_rate": float(sel_dock[c]),
+            "fitness": float(sel_fit[c]),
+        },
+        "candidates": [
             {
                 "population": k,
-                "test_fitness": float(test_fit[k]),
-                "dock_rate": float(docked[k].mean()),
-                "mean_steps_to_dock": float(steps[k][docked[k]].mean())
-                if docked[k].any()
-                else None,
-                "final_training_fitness": float(r.history[-1, 1]),
+                "generation": g,
+                "selection_dock_rate": float(d),
+                "selection_fitness": float(f),
             }
-        )
-        write_chromosome(
-            folder / f"best_pop{k}.txt",
-            r.best,
-            _provenance(
-                "navigation",
-                k,
-                ga,
-                table,
-                f"test fitness {test_fit[k]:.4f}, "
-                f"docked {docked[k].mean():.0%} of {len(test_starts)} test starts",
-            ),
-        )
-    summary = {
-        "stage": "navigation",
-        "dock_success": float(docked[chosen].mean()),
-        "mean_steps_to_dock": per_pop[chosen]["mean_steps_to_dock"],
-        "chosen_population": chosen,
-        "test_fitness": float(test_fit[chosen]),
-        "test_starts": len(test_starts),
+            for (k, g, _), d, f in zip(cands, sel_dock, sel_fit, strict=True)
+        ],  # fmt: skip
         "populations": per_pop,
-        "wall_s": time.perf_counter() - t0,
-        "resumed": bool(resume),
-        "settings": doc,
     }
-    header = _provenance(
-        "navigation",
-        chosen,
-        ga,
-        table,
-        f"chosen: best test fitness {test_fit[chosen]:.4f} of "
-        f"{ga.populations} populations; docked {summary['dock_success']:.0%} "
-        f"of {len(test_starts)} fresh starts",
-    )
-    write_chromosome(folder / "best.txt", results[chosen].best, header)
-    atomic_write_json(folder / "summary.json", summary)
-    return summary
 
 
-def _provenance(stage: str, k: int, ga: GASettings, table: GaitTable, extra: str) -> str:
+def _maybe(v: float) -> float | None:
+    return None if not np.isfinite(v) else float(v)
+
+
+def _provenance(
+    stage: str, k: int, ga: GASettings, table: GaitTable, extra: str, generation: int | None = None
+) -> str:
+    gen = "final generation" if generation in (None, ga.generations) else "generation"
     return (
-        f"servobot {stage} stage, population {k} of {ga.populations}, final generation "
-        f"{ga.generations}, population size {ga.population_size}, seed {ga.seed}\n"
+        f"servobot {stage} stage, population {k} of {ga.populations}, {gen} "
+        f"{ga.generations if generation is None else generation} of {ga.generations}, "
+        f"population size {ga.population_size}, seed {ga.seed}\n"
         f"gait table: {table.source}\n{extra}"
     )
 
@@ -383,7 +473,10 @@ def run_coverage(
     fixed ``navigation`` section) from the same ``ga.test_starts`` fresh coverage starts;
     inner squares / 64 as a percentage. Summary keys: ``figure9`` (per population and mean,
     per generation), ``final_mean_inner_percent``, ``final_inner_percent`` (per population),
-    ``figure10`` (squares, docks, end per population), ``wall_s``, ``settings``.
+    ``figure10`` (squares, docks, end per population), ``handoffs`` (``evolve.handoff``: how
+    often navigation docked after each finalist's switches to it on the Figure 9 test
+    starts, all finalists and per population; every hand-off in ``handoffs.csv``),
+    ``wall_s``, ``settings``.
     """
     out = Path(out)
     stage = coverage_stage(world, navigation)
@@ -411,6 +504,12 @@ def _coverage(
     _write_figure9(folder, gens, inner, squares)
     figures.figure9(folder / "figure9.png", gens, inner)
     figures.figure8(out / "figure8.png", world)
+    handoffs = {
+        r.index: collect_handoffs(stage.genomes(r.best[None])[0], test_starts, table=table,
+                                  world=world)
+        for r in results
+    }  # fmt: skip
+    write_handoffs(folder / "handoffs.csv", handoffs)
     fig10 = []
     for r in results:
         k = r.index
@@ -436,6 +535,12 @@ def _coverage(
         "final_inner_percent": inner[:, -1].tolist(),
         "final_mean_squares": squares[:, -1].tolist(),
         "figure10": fig10,
+        "handoffs": {
+            "all": handoff_rate(h for runs in handoffs.values() for found in runs for h in found),
+            "populations": [
+                handoff_rate(h for found in handoffs[k] for h in found) for k in sorted(handoffs)
+            ],
+        },
         "test_starts": len(test_starts),
         "wall_s": time.perf_counter() - t0,
         "resumed": bool(resume),
@@ -498,6 +603,8 @@ __all__ = [
     "StageError",
     "check_ga",
     "run_navigation",
+    "choose_section",
+    "navigation_candidates",
     "run_coverage",
     "navigation_run_fitness",
     "coverage_run_fitness",

@@ -29,6 +29,44 @@ def navigation_starts(rng: np.random.Generator, n: int, world: WorldSettings) ->
     return _uniform_poses(rng, n, world.navigation_start_xy, world.navigation_start_xy)
 
 
+def navigation_training_starts(
+    rng: np.random.Generator,
+    n: int,
+    world: WorldSettings,
+    generation: int,
+    *,
+    first_radius: float,
+    ramp_generations: int,
+) -> np.ndarray:
+    """(n, 3) training starts of a navigation generation whose start region grows (a
+    curriculum, ``NavigationSettings``): navigation starts (SPEC §6 region) within a radius of
+    ``world.dock_point`` that grows linearly from ``first_radius`` at generation 0 to the whole
+    region at ``ramp_generations``, drawn by rejection in batches of n (once the radius
+    covers the region, exactly ``navigation_starts``' poses)."""
+    radius = growing_radius(world, generation, first_radius, ramp_generations)
+    out = np.empty((0, 3))
+    dx, dy = world.dock_point
+    while len(out) < n:
+        poses = navigation_starts(rng, n, world)
+        keep = (poses[:, 0] - dx) ** 2 + (poses[:, 1] - dy) ** 2 <= radius**2
+        out = np.concatenate([out, poses[keep]])
+    return out[:n]
+
+
+def growing_radius(
+    world: WorldSettings, generation: int, first_radius: float, ramp_generations: int
+) -> float:
+    """Radius (units) around ``world.dock_point`` of generation ``generation``'s navigation
+    training starts: ``first_radius`` at 0, linearly up to the distance of the region's
+    farthest corner at ``ramp_generations`` (and beyond)."""
+    lo, hi = world.navigation_start_xy
+    dx, dy = world.dock_point
+    full = max(np.hypot(x - dx, y - dy) for x in (lo, hi) for y in (lo, hi))
+    if ramp_generations <= 0 or generation >= ramp_generations:
+        return float(full)
+    return float(first_radius + (full - first_radius) * generation / ramp_generations)
+
+
 def coverage_starts(rng: np.random.Generator, n: int, world: WorldSettings) -> np.ndarray:
     """(n, 3) coverage start poses: x in ``world.coverage_start_x``, y in
     ``world.coverage_start_y``, heading uniform in [0, 360) degrees (SPEC §5)."""
@@ -64,4 +102,10 @@ def colony_starts(
     return out
 
 
-__all__ = ["colony_starts", "coverage_starts", "navigation_starts"]
+__all__ = [
+    "colony_starts",
+    "coverage_starts",
+    "growing_radius",
+    "navigation_starts",
+    "navigation_training_starts",
+]

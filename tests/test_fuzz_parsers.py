@@ -1,7 +1,7 @@
 """Fuzzing every parser of user files with hypothesis: chromosome text, gait-table JSON, gait
-parameters, settings files (run-folder records, stage markers) and checkpoints. Whatever the
-bytes, a parser returns a valid result or raises its named error (an ``InputError`` whose
-message names the file) — never anything else."""
+parameters, poses files, settings files (run-folder records, stage markers) and checkpoints.
+Whatever the bytes, a parser returns a valid result or raises its named error (an
+``InputError`` whose message names the file) — never anything else."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from evolve.codec import ChromosomeError, parse_chromosome, read_chromosome
+from evolve.handoff import read_poses
 from evolve.population import PopulationRun, StageError
 from evolve.settings import GASettings, WorldSettings
 from evolve.stages import navigation_stage
@@ -129,6 +130,34 @@ def test_chromosome_files_of_any_bytes(scratch, data, bom):
         _named(exc, path)
         return
     assert bits.shape in ((8, 30), (16, 30))
+
+
+# --------------------------------------------------------------------------- poses files
+
+pose_fields = st.sampled_from(["1", "250.5", "-3", "nan", "inf", "1e400", "x", "", " 7 ", "1,2"])
+poses_texts = st.one_of(
+    st.text(max_size=200),
+    st.lists(st.lists(pose_fields, max_size=6).map(",".join), max_size=8).map(
+        lambda rows: "\n".join(["x,y,h,power", *rows])
+    ),
+    st.lists(st.sampled_from(["x,y,h", "h,x,y,note", "400,250,90", "1,2", "", "a,b,c"]),
+             max_size=8).map("\n".join),
+)  # fmt: skip
+
+
+@FUZZ
+@given(text=poses_texts, bom=st.booleans())
+def test_poses_files_read_or_name_the_file(scratch, text, bom):
+    path = scratch / "poses.csv"
+    path.write_bytes((b"\xef\xbb\xbf" if bom else b"") + text.encode("utf-8"))
+    try:
+        poses, powers = read_poses(path)
+    except Exception as exc:  # noqa: BLE001 - the assertion is on its type
+        _named(exc, path)
+        return
+    assert poses.ndim == 2 and poses.shape[1] == 3 and len(poses) >= 1
+    assert np.isfinite(poses).all()
+    assert powers is None or (powers.shape == (len(poses),) and np.isfinite(powers).all())
 
 
 # --------------------------------------------------------------------------- gait tables

@@ -14,7 +14,7 @@ from run_folder import result_files as _files
 from evolve import evaluate, stages
 from evolve import starts as starts_mod
 from evolve.codec import read_chromosome
-from evolve.settings import GASettings, WorldSettings, navigation_ga_settings
+from evolve.settings import GASettings, NavigationSettings, WorldSettings, navigation_ga_settings
 from evolve.table import load_table
 from infra.rundir import RunDirError
 
@@ -173,9 +173,12 @@ def test_corrupt_checkpoint_is_a_clear_error(tmp_path):
 @pytest.fixture(scope="module")
 def learned_navigation(tmp_path_factory):
     out = tmp_path_factory.mktemp("learn")
-    # 48 × 64: seeds 0–4 all dock from ≥ 49 % of the test starts (generation 0's best: ≤ 24 %)
+    # 48 × 64, the start region grown to the whole arena by generation 32: seeds 0–4 all dock
+    # from ≥ 49 % of the test starts (generation 0's best: ≤ 24 %), and the population's mean
+    # fitness on the test starts rises 11.7–14×
     ga = navigation_ga_settings(populations=1, population_size=48, generations=64, seed=1)
-    summary = stages.run_navigation(out, table=TABLE, ga=ga)
+    nav = NavigationSettings(start_ramp_fraction=0.5)
+    summary = stages.run_navigation(out, table=TABLE, ga=ga, navigation=nav)
     return out, ga, summary
 
 
@@ -190,11 +193,17 @@ def test_short_navigation_evolution_learns_to_dock(learned_navigation):
     )
     ev = evaluate(gen0[None], starts, table=TABLE.values, mode="navigation")
     gen0_docked = float((ev.end == 4).mean())
-    assert summary["dock_success"] >= 0.35
+    assert summary["dock_success"] >= 0.4
     assert summary["dock_success"] >= gen0_docked + 0.2
-    hist = np.loadtxt(folder / "history_pop0.csv", delimiter=",", skiprows=1)
-    assert hist[-8:, 2].mean() > 2 * hist[:8, 2].mean()  # population mean fitness rises
-    # best.txt is the chosen final best, and it docks as the summary says
+    # the population's mean fitness rises, on the same starts (the training starts of early
+    # generations lie near the dock, so their fitness does not compare)
+    stage = stages.navigation_stage(WORLD)
+    pops = [np.load(folder / f)["population"] for f in
+            ("populations/pop0_gen0000.npz", "checkpoints/pop0_final.npz")]  # fmt: skip
+    mean0, mean1 = (stages.evaluate_sections(p, starts, stage, TABLE, WORLD)[0].mean()
+                    for p in pops)  # fmt: skip
+    assert mean1 > 5 * mean0
+    # best.txt is the chosen section, and it docks as the summary says
     best = read_chromosome(folder / "best.txt")
     ev = evaluate(best[None], starts, table=TABLE.values, mode="navigation")
     assert math.isclose(float((ev.end == 4).mean()), summary["dock_success"])
