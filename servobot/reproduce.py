@@ -8,6 +8,7 @@ validation resumes finalist by finalist)::
     2 navigation   DIR/navigation/best.txt, summary.json             (CGA, calibrated table)
     3 coverage     DIR/coverage/best_pop{k}.txt, figure9.*, figure10_pop{k}.png, DIR/figure8.png
     4 validation   DIR/validation/pop{k}/report.{json,md}, run{j}.rrd  (table vs physics)
+                   DIR/validation/navigation_{fresh,handoffs}/report.{json,md}  (the section)
     5 report       DIR/REPORT.md                                      (always rewritten)
 
 Budgets live in ``ReproduceSettings`` (paper scale by default, ``quick_settings()`` for a
@@ -42,6 +43,7 @@ from calibration.calibrate import (
     calibration_need,
 )
 from evolve.codec import read_chromosome
+from evolve.handoff import PosesError, read_poses
 from evolve.population import OnGeneration
 from evolve.settings import WorldSettings, settings_json
 from evolve.stages import STAGE_FILES, run_coverage, run_navigation, stage_need
@@ -61,10 +63,20 @@ from servobot.reproduce_settings import (
     quick_settings,
     stage_key,
 )
-from servobot.validate import VALIDATION_FILES, ValidationError, validate, validation_need
+from servobot.validate import (
+    VALIDATION_FILES,
+    ValidationError,
+    clear_navigation_starts,
+    sample_poses,
+    validate,
+    validation_need,
+)
 
 VALIDATION_SEED_WORD = 2
 """Second entropy word of the validation starts' SeedSequence (stages use 0 and 1)."""
+NAVIGATION_VALIDATIONS = ("navigation_fresh", "navigation_handoffs")
+"""Folders of the navigation section's physics validations: from fresh navigation starts, and
+from the coverage finalists' hand-off poses."""
 RECORDING_FILE = "calibration.rrd"
 """The calibration stage's recording of the 16 walks."""
 DONE = "done.json"
@@ -75,7 +87,8 @@ REPRODUCE_FILES = (
     *(f"calibration/{f}" for f in CALIBRATION_FILES),
     *(f"{stage}/{f}" for stage in ("navigation", "coverage") for f in STAGE_FILES),
     "validation/starts.json",
-    *(f"validation/pop*/{f}" for f in (DONE, RECORD_FILE, *VALIDATION_FILES)),
+    *(f"validation/{sub}/{f}" for sub in ("pop*", *NAVIGATION_VALIDATIONS)
+      for f in (DONE, RECORD_FILE, *VALIDATION_FILES)),
 )  # fmt: skip
 """Every file a reproduction writes under its folder besides ``settings.json``."""
 
@@ -128,6 +141,9 @@ def reproduce_need(s: ReproduceSettings, world: WorldSettings, workers: int | No
     need += stage_need(s.coverage_ga(), world.coverage_steps)
     for _ in range(s.coverage_populations):
         need += validation_need(s.validate_starts, s.validate_max_steps, workers, True)[0]
+    for _ in NAVIGATION_VALIDATIONS:
+        n = s.validate_navigation_starts
+        need += validation_need(n, world.navigation_steps, workers, False)[0]
     return need
 
 
@@ -219,6 +235,7 @@ class _Pipeline:
 
         def body() -> dict[str, Any]:
             res = self._validate_finalists(table)
+            res |= self._validate_navigation(table)
             failed = [k for k, r in res.items() if "error" in r]
             if failed:
                 raise ReproduceError(
@@ -257,6 +274,59 @@ class _Pipeline:
             write_done(sub, key, wall)
             results[str(k)] = {"skipped": False, "wall_s": round(wall, 3)}
         return results
+
+    def _validate_navigation(self, table: GaitTable) -> dict[str, Any]:
+        """Physics validation of the navigation section alone (navigation mode): from fresh
+        navigation starts and from hand-off poses of the coverage finalists; resumable."""
+        s, folder = self.s, self.out / "validation"
+        key = stage_key(s, "validation")
+        section = read_chromosome(self.out / "navigation" / "best.txt")
+        fresh, handoffs, powers = navigation_validation_starts(s, self.world, self.out)
+        results: dict[str, Any] = {}
+        for name, starts, volts in (("navigation_fresh", fresh, None),
+                                    ("navigation_handoffs", handoffs, powers)):  # fmt: skip
+            sub = folder / name
+            done = read_done(sub, key)
+            if done is not None and (sub / "report.json").exists():
+                results[name] = {"skipped": True, "wall_s": done["wall_s"]}
+                continue
+            if not len(starts):
+                results[name] = {"skipped": True, "wall_s": 0.0, "note": "no poses"}
+                continue
+            t0 = time.perf_counter()
+            try:
+                validate(
+                    section, starts, table=table, world=self.world, out_dir=sub,
+                    executor=self.executor, model=s.model, on_run=self.on_run, powers=volts,
+                    meta={"source": "navigation/best.txt", "starts": name},
+                )  # fmt: skip
+            except ValidationError as exc:
+                self.log(f"validation of the navigation section ({name}) failed: {exc}")
+                results[name] = {"error": str(exc)}
+                continue
+            wall = time.perf_counter() - t0
+            write_done(sub, key, wall)
+            results[name] = {"skipped": False, "wall_s": round(wall, 3)}
+        return results
+
+
+def navigation_validation_starts(
+    s: ReproduceSettings, world: WorldSettings, out: Path
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(fresh navigation starts, hand-off poses, their powers) of the navigation section's
+    validation: ``s.validate_navigation_starts`` of each, seeded; the hand-off poses drawn
+    without replacement from ``coverage/handoffs.csv`` (those the arena cannot hold left
+    out; none when the finalists never handed over)."""
+    seq = np.random.SeedSequence([int(s.seed), VALIDATION_SEED_WORD, 1])
+    rng = np.random.Generator(np.random.PCG64(seq))
+    n = s.validate_navigation_starts
+    fresh = clear_navigation_starts(rng, n, world)
+    try:
+        poses, powers = sample_poses(*read_poses(out / "coverage" / "handoffs.csv"), None,
+                                     rng, world)  # fmt: skip
+    except (PosesError, ValidationError):  # no hand-off (or none the arena can hold)
+        return fresh, np.empty((0, 3)), None
+    return (fresh, *sample_poses(poses, powers, min(n, len(poses)), rng, world))
 
 
 def validation_starts(s: ReproduceSettings, world: WorldSettings) -> np.ndarray:

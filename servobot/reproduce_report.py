@@ -85,11 +85,18 @@ def _navigation_section(out: Path) -> list[str]:
     if summ is None:
         return [*lines, "*(navigation/summary.json not written)*", ""]
     steps = summ.get("mean_steps_to_dock")
+    sel = summ.get("selection", {})
     lines += [
-        f"Chosen section: population {summ['chosen_population']} "
-        f"(`navigation/best.txt`); docking success on {summ['test_starts']} fresh starts: "
+        f"Chosen section (`navigation/best.txt`): generation {summ.get('chosen_generation')} of "
+        f"population {summ['chosen_population']}, the best of {len(summ.get('candidates', []))} "
+        f"candidates by {sel.get('criterion', 'fitness')} on {sel.get('selection_starts', '—')} "
+        f"selection starts; docking success on {summ['test_starts']} fresh test starts: "
         f"**{100 * summ['dock_success']:.0f}%**"
         + (f", mean {steps:.1f} steps to dock." if steps is not None else "."),
+        "",
+        *_docking_rows(out, summ),
+        "",
+        "Each population's final best on the test starts:",
         "",
         "| population | test fitness | dock rate | final training fitness |",
         "|---|---|---|---|",
@@ -100,6 +107,39 @@ def _navigation_section(out: Path) -> list[str]:
             f"{p['final_training_fitness']:.3f} |"
         )
     return [*lines, ""]
+
+
+def _docking_rows(out: Path, nav: dict[str, Any]) -> list[str]:
+    """Where the chosen section docks from, in the table world and in physics."""
+    rows = [
+        "| the navigation section, from | runs | docked (table world) | docked (physics) |",
+        "|---|---|---|---|",
+        f"| fresh navigation starts (the stage's test starts) | {nav['test_starts']} | "
+        f"{100 * nav['dock_success']:.0f}% | |",
+    ]
+    cov = _load_json(out / "coverage" / "summary.json") or {}
+    ho = cov.get("handoffs", {}).get("all")
+    if ho and ho.get("dock_rate") is not None:
+        rows.append(
+            f"| the finalists' hand-offs on the Figure 9 test starts (in the coverage runs) | "
+            f"{ho['docked'] + ho['failed']} (+{ho['cut']} cut by the step limit) | "
+            f"{100 * ho['dock_rate']:.0f}% | |"
+        )
+    for name, what in (
+        ("navigation_fresh", "fresh navigation starts (validation)"),
+        ("navigation_handoffs", "hand-off poses and powers (validation)"),
+    ):
+        rep = _load_json(out / "validation" / name / "report.json")
+        if rep is None:
+            continue
+        sm = rep["summary"]
+        t, ph = sm.get("table_paired", {}), sm.get("physics", {})
+        if t.get("runs"):
+            rows.append(
+                f"| {what} | {sm['physics_ok']}/{sm['starts']} | {100 * t['dock_success']:.0f}% | "
+                f"{100 * ph['dock_success']:.0f}% |"
+            )
+    return rows
 
 
 def _coverage_section(out: Path) -> list[str]:

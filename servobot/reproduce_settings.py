@@ -46,6 +46,10 @@ class ReproduceSettings:
     """Coverage start poses per finalist in the physics validation (issue 4: ≥ 20)."""
     validate_max_steps: int = 600
     """Steps of a validation run (SPEC §5: 600)."""
+    validate_navigation_starts: int = 25
+    """Navigation runs in the physics validation of the navigation section, twice: from this
+    many fresh navigation starts (SPEC §6 region, clear of the station block) and from this
+    many of the coverage finalists' hand-off poses and powers (``coverage/handoffs.csv``)."""
     seed: int = 0
     """Seed of every random draw (calibration noise, GA, test and validation starts)."""
     model: str | None = None
@@ -90,7 +94,7 @@ def quick_settings(**overrides: Any) -> ReproduceSettings:
     """A first look in a few minutes on 2 cores: the paper's 5 populations but of 64
     individuals, 256 navigation and 128 coverage generations, 5 calibration cycles, and 3
     full-length (600-step) validation starts per finalist, so that docking and recharging
-    show in physics."""
+    show in physics, and 5 + 5 navigation runs."""
     base = ReproduceSettings(
         calibration_cycles=5,
         navigation_population_size=64,
@@ -98,6 +102,7 @@ def quick_settings(**overrides: Any) -> ReproduceSettings:
         coverage_population_size=64,
         coverage_generations=128,
         validate_starts=3,
+        validate_navigation_starts=5,
     )
     return dataclasses.replace(base, **overrides)
 
@@ -111,7 +116,7 @@ _STAGE_FIELDS: dict[str, tuple[str, ...]] = {
         "test_starts",
     ),
     "coverage": ("coverage_populations", "coverage_population_size", "coverage_generations"),
-    "validation": ("validate_starts", "validate_max_steps"),
+    "validation": ("validate_starts", "validate_max_steps", "validate_navigation_starts"),
 }
 
 

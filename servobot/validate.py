@@ -45,9 +45,10 @@ from typing import Any
 import numpy as np
 
 from evolve import geometry
-from evolve.codec import FULL_GENES, check_bits, format_chromosome
+from evolve.codec import FULL_GENES, SECTION_GENES, check_bits, format_chromosome
 from evolve.interpreter import END_NAMES, run
 from evolve.settings import WorldSettings
+from evolve.starts import navigation_starts
 from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
 from infra.bounds import LIMITS, Need, check_int, check_need
@@ -60,7 +61,10 @@ from servo_mj.world.arena import ArenaSettings, default_robot, overlaps_station
 from servobot.validation_report import summarise, write_report
 
 MODE = "coverage"
-"""Validation runs the full controller in coverage mode (SPEC §5)."""
+"""A full 16-gene controller is validated in coverage mode (SPEC §5)."""
+NAVIGATION_MODE = "navigation"
+"""An 8-gene navigation section is validated in navigation mode (SPEC §6): from gene 0 until
+it docks, ``WorldSettings.navigation_steps`` steps at most."""
 VALIDATION_FILES = ("report.json", "report.md", "tracks.npz", "tracks*.png", "run*.rrd")
 """What a validation writes into its folder besides ``settings.json``."""
 RRD_BYTES_PER_STEP = 25_000
@@ -92,6 +96,10 @@ class StartJob:
     """Seed of this run's servo-noise generator: ``default_rng((seed, index))``."""
     model: str | None = None
     """The robot's model file (None = the shipped ServoBot)."""
+    mode: str = MODE
+    """``MODE`` (a 16-gene chromosome) or ``NAVIGATION_MODE`` (an 8-gene section)."""
+    power: float | None = None
+    """Power at the start, volts (None = ``WorldSettings.start_power_v``)."""
 
 
 def check_start(
@@ -129,18 +137,62 @@ def check_start(
     return x, y, h % 360.0
 
 
-def check_chromosome(bits: Any) -> np.ndarray:
-    """A (16, 30) chromosome as uint8, or ``ValidationError`` (an 8-gene section is refused)."""
+def clear_navigation_starts(
+    rng: np.random.Generator, n: int, world: WorldSettings, arena: ArenaSettings | None = None
+) -> np.ndarray:
+    """(n, 3) navigation starts (SPEC §6 region, ``evolve.starts.navigation_starts``) that the
+    physics arena can hold: poses overlapping the station block are drawn again."""
+    arena = arena or ArenaSettings()
+    out = np.empty((0, 3))
+    while len(out) < n:
+        poses = navigation_starts(rng, n, world)
+        keep = [not overlaps_station(x, y, world, arena) for x, y, _ in poses]
+        out = np.concatenate([out, poses[keep]])
+    return out[:n]
+
+
+def sample_poses(
+    poses: np.ndarray, powers: np.ndarray | None, n: int | None, rng: np.random.Generator,
+    world: WorldSettings, arena: ArenaSettings | None = None,
+) -> tuple[np.ndarray, np.ndarray | None]:  # fmt: skip
+    """The poses (and their powers) that the physics arena can hold — those overlapping the
+    station block are left out — all of them (``n`` None) or ``n`` drawn without replacement,
+    in file order; ``ValidationError`` when fewer than ``n`` (or none) remain."""
+    arena = arena or ArenaSettings()
+    keep = np.array([not overlaps_station(x, y, world, arena) for x, y, _ in poses], bool)
+    poses, powers = poses[keep], None if powers is None else powers[keep]
+    if not len(poses) or (n is not None and n > len(poses)):
+        raise ValidationError(
+            f"{n or 'any'} poses asked, {len(poses)} clear of the station block available"
+        )
+    if n is not None:
+        pick = np.sort(rng.choice(len(poses), n, replace=False))
+        poses, powers = poses[pick], None if powers is None else powers[pick]
+    return poses, powers
+
+
+def check_chromosome(bits: Any, *, sections: bool = False) -> np.ndarray:
+    """A (16, 30) chromosome as uint8 — or, with ``sections``, an (8, 30) navigation section
+    too — else ``ValidationError``."""
     try:
         arr = check_bits(bits)
     except ValueError as exc:
         raise ValidationError(str(exc)) from exc
+    if arr.shape[0] == SECTION_GENES and sections:
+        return arr
     if arr.shape[0] != FULL_GENES:
+        also = " or an 8-gene navigation section" if sections else ""
         raise ValidationError(
             f"validation needs a full 16-gene chromosome (coverage genes 0-7 + navigation "
-            f"genes 8-15), got {arr.shape[0]} genes"
+            f"genes 8-15){also}, got {arr.shape[0]} genes"
         )
     return arr
+
+
+def mode_of(bits: np.ndarray) -> str:
+    """The mode a checked controller is validated in: ``NAVIGATION_MODE`` for an 8-gene
+    section, else ``MODE``."""
+    return NAVIGATION_MODE if len(bits) == SECTION_GENES else MODE
 
 
 def _find_sha(meta: Any) -> str | None:
@@ -222,8 +274,8 @@ def run_start(job: StartJob) -> dict[str, Any]:
         t0 = time.perf_counter()
         table_world = TableWorld(job.table, x, y, h, job.world)
         res = run(
-            job.bits, table_world, mode=MODE, settings=job.world, max_steps=job.max_steps,
-            on_event=None if rec is None else rec.table_event,
+            job.bits, table_world, mode=job.mode, settings=job.world, start_power=job.power,
+            max_steps=job.max_steps, on_event=None if rec is None else rec.table_event,
         )  # fmt: skip
         return _record(res, time.perf_counter() - t0), res.track
 
@@ -239,8 +291,8 @@ def run_start(job: StartJob) -> dict[str, Any]:
                 rec.physics_event(e)
 
         res = run(
-            job.bits, pw, mode=MODE, settings=job.world, max_steps=job.max_steps,
-            on_event=on_physics,
+            job.bits, pw, mode=job.mode, settings=job.world, start_power=job.power,
+            max_steps=job.max_steps, on_event=on_physics,
         )  # fmt: skip
         return _record(res, time.perf_counter() - t0), res.track
 
@@ -365,7 +417,7 @@ def _run_jobs(
 
 def validation_settings(
     world: WorldSettings, arena: ArenaSettings, physics: Any, steps: int, seed: int,
-    model: ModelFile,
+    model: ModelFile, mode: str = MODE,
 ) -> dict[str, Any]:  # fmt: skip
     """The settings a validation's results depend on (``settings.json``, the report)."""
     return {
@@ -374,7 +426,7 @@ def validation_settings(
         "PhysicsSettings": jsonable(physics) if physics is not None else "default",
         "max_steps": steps,
         "seed": seed,
-        "mode": MODE,
+        "mode": mode,
         "model": model_label(model),
         "model_sha256": model_sha256(model),
     }
@@ -449,8 +501,14 @@ def validate(
     on_run: Callable[[dict[str, Any]], None] | None = None,
     meta: dict[str, Any] | None = None,
     force: bool = False,
+    powers: Any = None,
 ) -> dict[str, Any]:
     """Run ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the table and physics.
+
+    ``bits`` may also be an (8, 30) navigation section: it then runs in navigation mode
+    (SPEC §6: from gene 0 until it docks, ``world.navigation_steps`` steps by default), and
+    ``powers`` (N volts, default ``world.start_power_v``) sets each start's power, e.g. the
+    power at a coverage run's hand-off (``evolve.handoff``).
 
     ``table`` is a (16, 3) array or a ``GaitTable``; ``physics`` a ``PhysicsSettings`` (None =
     default; with ``servo_noise_rad`` > 0, run k draws its noise from
@@ -465,12 +523,14 @@ def validate(
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
-    arr = check_chromosome(bits)
+    arr = check_chromosome(bits, sections=True)
+    mode = mode_of(arr)
     values = validate_table(getattr(table, "values", table))
     poses = check_starts(starts, world, arena)
-    steps, out, rrd = check_run_options(max_steps, model, world, out_dir, rrd)
+    volts = check_powers(powers, len(poses), world)
+    steps, out, rrd = check_run_options(max_steps, model, world, out_dir, rrd, mode)
     disk = check_sizes(len(poses), steps, None if executor else workers, rrd, seed)
-    settings = validation_settings(world, arena, physics, steps, seed, model)
+    settings = validation_settings(world, arena, physics, steps, seed, model, mode)
     jobs = [
         StartJob(
             index=k,
@@ -484,12 +544,16 @@ def validate(
             seed=seed,
             model=None if model is None else str(model),
             rrd_path=str(out / f"run{k}.rrd") if rrd and out else None,
+            mode=mode,
+            power=volts[k],
         )  # fmt: skip
         for k, p in enumerate(poses)
     ]
     head = report_head(arr, table, values, settings, meta)
     record = {"chromosome": head["chromosome"], "table": head["table"]["values"],
               "starts": [list(p) for p in poses], "settings": settings, "rrd": rrd}  # fmt: skip
+    if powers is not None:
+        record["powers"] = volts
     return execute(
         jobs, run_start, ex=executor or make_executor(None, workers), head=head,
         summary=lambda runs, wall: summarise(runs, world, wall), write=write_report, out=out,
@@ -497,9 +561,27 @@ def validate(
     )  # fmt: skip
 
 
+def check_powers(powers: Any, n: int, world: WorldSettings) -> list[float | None]:
+    """One start power per start (volts; None = ``world.start_power_v``), or
+    ``ValidationError``: a power must be finite, at least ``world.empty_power_v`` (the run would
+    end at once) and at most ``world.charged_power_v``."""
+    if powers is None:
+        return [None] * n
+    arr = np.asarray(powers, dtype=float).reshape(-1)
+    if len(arr) != n:
+        raise ValidationError(f"powers: one per start, got {len(arr)} for {n} starts")
+    lo, hi = world.empty_power_v, world.charged_power_v
+    bad = [k for k, v in enumerate(arr) if not (np.isfinite(v) and lo <= v <= hi)]
+    if bad:
+        k = bad[0]
+        raise ValidationError(f"power of start {k} is {arr[k]} V, not in [{lo}, {hi}] V")
+    return [float(v) for v in arr]
+
+
 def check_run_options(
-    max_steps: int | None, model: ModelFile, world: WorldSettings, out_dir: Any, rrd: bool
-) -> tuple[int, Path | None, bool]:
+    max_steps: int | None, model: ModelFile, world: WorldSettings, out_dir: Any, rrd: bool,
+    mode: str = MODE,
+) -> tuple[int, Path | None, bool]:  # fmt: skip
     """(steps per run, output folder or None, whether recordings are written), or
     ``ValidationError`` for a negative step count or a missing model file."""
     if max_steps is not None and max_steps < 0:
@@ -507,22 +589,28 @@ def check_run_options(
     if model is not None and not Path(model).is_file():
         raise ValidationError(f"robot model {model}: no such file")
     out = None if out_dir is None else Path(out_dir)
-    steps = max_steps if max_steps is not None else world.coverage_steps
+    default = world.navigation_steps if mode == NAVIGATION_MODE else world.coverage_steps
+    steps = max_steps if max_steps is not None else default
     return steps, out, rrd and out is not None
 
 
 __all__ = [
     "MODE",
+    "NAVIGATION_MODE",
     "VALIDATION_FILES",
     "StartJob",
     "ValidationError",
     "check_chromosome",
+    "check_powers",
+    "clear_navigation_starts",
+    "sample_poses",
     "check_run_options",
     "check_sizes",
     "check_start",
     "execute",
     "jsonable",
     "load_checked_table",
+    "mode_of",
     "physics_world",
     "report_head",
     "run_both_worlds",

@@ -34,6 +34,7 @@ TINY = ReproduceSettings(
     test_starts=4,
     validate_starts=2,
     validate_max_steps=6,
+    validate_navigation_starts=2,
     seed=3,
 )
 """Smaller than --quick: seconds, but every stage and file of a full run."""
@@ -62,6 +63,11 @@ def test_tiny_run_writes_every_stage(run_dir: tuple[Path, dict]) -> None:
         assert len(rep["runs"]) == TINY.validate_starts
         for j in range(TINY.validate_starts):
             assert (out / "validation" / f"pop{k}" / f"run{j}.rrd").exists()
+    # The navigation section alone, in navigation mode, from fresh starts in both worlds.
+    nav = json.loads((out / "validation" / "navigation_fresh" / "report.json").read_text())
+    assert nav["settings"]["mode"] == "navigation" and len(nav["runs"]) == 2
+    assert nav["settings"]["max_steps"] == 100
+    assert all(r["physics"]["steps"] <= 100 for r in nav["runs"])
     # Every finalist ran from the same seeded starts.
     starts = json.loads((out / "validation" / "starts.json").read_text())["starts"]
     rep0 = json.loads((out / "validation" / "pop0" / "report.json").read_text())

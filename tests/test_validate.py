@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from chromosome_text import LIGHT_FOLLOWER
 
 from evolve.codec import parse_chromosome
 from evolve.settings import WorldSettings
@@ -87,8 +88,8 @@ def test_physics_blow_up_is_that_runs_error_only(tmp_path, monkeypatch):
 
 
 def test_bad_inputs_are_named():
-    with pytest.raises(ValidationError, match="16-gene"):
-        validate(BITS[:8], STARTS, table=PAPER_TABLE, workers=1)
+    with pytest.raises(ValidationError, match="8 or 16 genes"):
+        validate(BITS[:12], STARTS, table=PAPER_TABLE, workers=1)
     with pytest.raises(ValidationError, match="kill zone"):
         validate(BITS, [[480.0, 250.0, 0.0]], table=PAPER_TABLE, workers=1)
     with pytest.raises(ValidationError, match="outside"):
@@ -177,10 +178,54 @@ def test_cli_rejects_unparsable_and_8_gene_chromosomes(tmp_path, capsys):
     assert validate_cli.main([str(bad)]) == 2
     err = capsys.readouterr().err
     assert "bad.txt:4" in err and "non-binary" in err
-    short = tmp_path / "short.txt"
-    short.write_text(GENE_8 * 8)
-    assert validate_cli.main([str(short)]) == 2
+    section = tmp_path / "section.txt"
+    section.write_text(GENE_8 * 8)
+    assert validate_cli.main([str(section), "--robots", "2"]) == 2  # a colony runs 16 genes
     assert "16-gene" in capsys.readouterr().err
+    assert validate_cli.main([str(section), "--poses", str(section), "--start", "100", "100",
+                              "0"]) == 2  # fmt: skip
+    assert "--poses" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- navigation mode
+SECTION = parse_chromosome(LIGHT_FOLLOWER)
+
+
+def test_a_navigation_section_runs_in_navigation_mode_from_its_powers(tmp_path):
+    world = WorldSettings()
+    starts = np.array([[300.0, 250.0, 90.0], [300.0, 250.0, 90.0]])
+    rep = validate(SECTION, starts, table=load_table("paper"), workers=1, powers=[4.0, 2.9])
+    assert rep["settings"]["mode"] == "navigation"
+    assert rep["settings"]["max_steps"] == world.navigation_steps
+    full, weak = rep["runs"]
+    # 2.9 V leaves (2.9 - 2.7) / 0.0209 = 9.6 cycles before the power runs out; 4.0 V docks
+    for w in ("table", "physics"):
+        assert full[w]["end"]["name"] == "docked" and full[w]["docks"] == 1
+        assert weak[w]["end"]["name"] == "power empty" and weak[w]["steps"] == 10
+    with pytest.raises(ValidationError, match="power of start 1 is 2.0 V"):
+        validate(SECTION, starts, table=load_table("paper"), powers=[4.0, 2.0])
+    with pytest.raises(ValidationError, match="one per start"):
+        validate(SECTION, starts, table=load_table("paper"), powers=[4.0])
+
+
+def test_cli_runs_a_section_from_hand_off_poses(tmp_path, capsys):
+    section = tmp_path / "nav.txt"
+    section.write_text(LIGHT_FOLLOWER)
+    poses = tmp_path / "handoffs.csv"
+    poses.write_text(
+        "x,y,h,power,outcome\n300,250,90,4.0,docked\n470,260,270,3.9,cut\n"
+        "300,300,45,2.9,kill zone\n"
+    )  # the second pose overlaps the station block: left out
+    out = tmp_path / "out"
+    rc = validate_cli.main([str(section), "--poses", str(poses), "--workers", "1",
+                            "--no-progress", "--out", str(out)])  # fmt: skip
+    assert rc == 0, capsys.readouterr().err
+    doc = json.loads((out / "report.json").read_text())
+    assert [[r["start"][k] for k in "xyh"] for r in doc["runs"]] == [[300, 250, 90], [300, 300, 45]]
+    assert doc["runs"][1]["table"]["steps"] == 10  # started at 2.9 V
+    rc = validate_cli.main([str(section), "--poses", str(poses), "--starts", "3", "--out",
+                            str(tmp_path / "o2")])  # fmt: skip
+    assert rc == 2 and "2 clear of the station block" in capsys.readouterr().err
 
 
 def test_cli_rejects_a_table_from_another_robot_model(chromosome, tmp_path, capsys):

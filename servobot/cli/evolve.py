@@ -158,16 +158,19 @@ def load_navigation(path: Path) -> np.ndarray:
 
 def _print_navigation(summary: dict[str, Any], out: Path) -> None:
     steps = summary["mean_steps_to_dock"]
+    sel = summary["selection"]
     print(
-        f"navigation: chosen population {summary['chosen_population']}, test fitness "
-        f"{summary['test_fitness']:.3f}, docked {summary['dock_success']:.0%} of "
-        f"{summary['test_starts']} fresh starts"
+        f"navigation: chosen generation {summary['chosen_generation']} of population "
+        f"{summary['chosen_population']} (of {len(summary['candidates'])} candidates, by "
+        f"{sel['criterion']}: docked {sel['dock_rate']:.0%} of {sel['selection_starts']} "
+        f"selection starts); test fitness {summary['test_fitness']:.3f}, docked "
+        f"{summary['dock_success']:.0%} of {summary['test_starts']} fresh starts"
         + (f", mean {steps:.1f} steps to dock" if steps is not None else "")
     )
     for p in summary["populations"]:
         print(
-            f"  population {p['population']}: test fitness {p['test_fitness']:.3f}, "
-            f"docked {p['dock_rate']:.0%}"
+            f"  population {p['population']} (final best): test fitness "
+            f"{p['test_fitness']:.3f}, docked {p['dock_rate']:.0%}"
         )
     print(f"wrote {out / 'navigation' / 'best.txt'} ({summary['wall_s']:.1f} s)")
 
@@ -179,6 +182,13 @@ def _print_coverage(summary: dict[str, Any], out: Path) -> None:
         f"coverage: Figure 9 at generation {gen}: mean {summary['final_mean_inner_percent']:.1f}% "
         f"of the 64 inner squares (populations: {per})"
     )
+    ho = summary["handoffs"]["all"]
+    if ho["dock_rate"] is not None:
+        print(
+            f"  navigation docked after {ho['dock_rate']:.0%} of the finalists' "
+            f"{ho['docked'] + ho['failed']} hand-offs on the test starts ({ho['cut']} cut by the "
+            "step limit)"
+        )
     for f in summary["figure10"]:
         print(
             f"  Figure 10 population {f['population']}: {f['squares']} squares "

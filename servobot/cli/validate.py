@@ -1,7 +1,10 @@
 """``servobot validate CHROMOSOME``: run a controller in the table simulation and in physics.
 
 Runs the 16-gene chromosome from N start poses (SPEC §5 coverage region, seeded) or from the
-given ``--start X Y H`` poses, in both worlds, and writes ``report.json``, ``report.md``,
+given ``--start X Y H`` poses, in both worlds; an 8-gene navigation section runs in navigation
+mode (SPEC §6) from N navigation starts clear of the station block, the ``--start`` poses, or
+the ``--poses FILE`` poses and powers (e.g. a coverage stage's ``handoffs.csv``). It writes
+``report.json``, ``report.md``,
 ``tracks.npz`` (and ``run{k}.rrd`` with ``--rrd``) into ``--out``. With ``--robots R`` each
 start is a colony of R robots sharing the station (SPEC §7): N colony starts drawn by
 ``evolve.starts.colony_starts``, or the ``--start`` poses taken R at a time; it also writes
@@ -24,7 +27,8 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from evolve.codec import ChromosomeError, read_chromosome
+from evolve.codec import SECTION_GENES, ChromosomeError, read_chromosome
+from evolve.handoff import read_poses
 from evolve.settings import ColonySettings, WorldSettings
 from evolve.starts import colony_starts, coverage_starts
 from infra.bounds import check_int, check_need, check_number
@@ -40,7 +44,9 @@ from servobot.validate import (
     ValidationError,
     check_chromosome,
     check_start,
+    clear_navigation_starts,
     load_checked_table,
+    sample_poses,
     validate,
     validation_need,
 )
@@ -61,13 +67,19 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         "in MuJoCo physics; report squares, inner squares, docks, steps, end reasons and the "
         "table-vs-physics gap.",
     )
-    p.add_argument("chromosome", type=Path, help="chromosome text file (16 genes)")
+    p.add_argument(
+        "chromosome",
+        type=Path,
+        help="chromosome text file: 16 genes, or an 8-gene navigation section (navigation mode)",
+    )
     p.add_argument(
         "--starts",
         type=int,
-        default=DEFAULT_STARTS,
+        default=None,
         metavar="N",
-        help=f"seeded start poses from the coverage region (default {DEFAULT_STARTS})",
+        help=f"seeded start poses from the coverage region (a navigation section: from the "
+        f"whole arena; with --poses: drawn from the file's) (default {DEFAULT_STARTS}; with "
+        "--poses: all of the file's)",
     )
     p.add_argument(
         "--start",
@@ -76,6 +88,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         action="append",
         metavar=("X", "Y", "H"),
         help="a start pose (cm, cm, deg); repeatable; replaces --starts",
+    )
+    p.add_argument(
+        "--poses",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="navigation section only: start poses (and powers) from a CSV with columns x, y, "
+        "h [, power], e.g. coverage/handoffs.csv; --starts N then draws N of them (seeded)",
     )
     p.add_argument(
         "--robots",
@@ -185,25 +205,36 @@ def _given_starts(args: argparse.Namespace, colony: ColonySettings | None) -> np
 
 def prepare(
     args: argparse.Namespace, world: WorldSettings
-) -> tuple[np.ndarray, np.ndarray, ColonySettings | None]:
-    """Read the chromosome and build the start poses ((N, 3), or (N, R, 3) with ``--robots``)
-    and the colony; ``InputError`` on bad input."""
+) -> tuple[np.ndarray, np.ndarray, ColonySettings | None, np.ndarray | None]:
+    """Read the controller and build the start poses ((N, 3), or (N, R, 3) with ``--robots``),
+    the colony and the start powers (``--poses`` only, else None); ``InputError`` on bad
+    input."""
     colony = _colony(args)
-    if not args.start:
+    if not args.start and args.starts is not None:
         check_int(args.starts, "--starts", lo=1)
-    n = len(args.start) // (colony.robots if colony else 1) if args.start else args.starts
+    count = DEFAULT_STARTS if args.starts is None else args.starts
+    n = len(args.start) // (colony.robots if colony else 1) if args.start else count
     _check_options(args, max(n, 1))
     try:
-        bits = check_chromosome(read_chromosome(args.chromosome))
+        bits = check_chromosome(read_chromosome(args.chromosome), sections=colony is None)
     except (ChromosomeError, ValidationError) as exc:
         raise InputError(f"chromosome: {exc}") from exc
+    section = len(bits) == SECTION_GENES
+    if args.poses is not None and (not section or args.start):
+        raise InputError("--poses: only for an 8-gene navigation section, and not with --start")
+    rng = np.random.default_rng(args.seed)
+    powers = None
     if args.start:
         starts = _given_starts(args, colony)
+    elif args.poses is not None:
+        starts, powers = _drawn_poses(args, world, rng)
+    elif section:
+        starts = clear_navigation_starts(rng, count, world)
     elif colony is None:
-        starts = coverage_starts(np.random.default_rng(args.seed), args.starts, world)
+        starts = coverage_starts(rng, count, world)
     else:
         try:
-            starts = colony_starts(np.random.default_rng(args.seed), args.starts, world, colony)
+            starts = colony_starts(rng, count, world, colony)
         except ValueError as exc:
             raise InputError(f"--robots {colony.robots}: {exc}") from exc
     if colony is None:
@@ -211,12 +242,24 @@ def prepare(
             check_start(s, world, name=f"start {k} ({s[0]:g} {s[1]:g} {s[2]:g})")
     else:
         check_colony_starts(starts, world, ArenaSettings(), colony)
-    return bits, starts, colony
+    return bits, starts, colony, powers
+
+
+def _drawn_poses(
+    args: argparse.Namespace, world: WorldSettings, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The ``--poses`` file's poses the physics arena can hold, all of them or ``--starts N``
+    drawn without replacement (``servobot.validate.sample_poses``)."""
+    poses, powers = read_poses(args.poses)
+    try:
+        return sample_poses(poses, powers, args.starts, rng, world)
+    except ValidationError as exc:
+        raise InputError(f"--poses {args.poses}: {exc}") from exc
 
 
 def _run(args: argparse.Namespace, command: str) -> int:
     world = WorldSettings()
-    bits, starts, colony = prepare(args, world)
+    bits, starts, colony, powers = prepare(args, world)
     table, warning = load_checked_table(args.table, args.model)
     if warning:
         print(warning, file=sys.stderr)
@@ -232,7 +275,7 @@ def _run(args: argparse.Namespace, command: str) -> int:
         if rec.get("error"):
             bar.write(f"run {rec['index']}: {rec['error']}")
 
-    kwargs: dict[str, Any] = {} if colony is None else {"colony": colony}
+    kwargs: dict[str, Any] = {"powers": powers} if colony is None else {"colony": colony}
     try:
         report = (validate if colony is None else validate_colony)(
             bits,

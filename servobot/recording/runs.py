@@ -174,9 +174,13 @@ def validation_properties(job: Any, physics: PhysicsSettings) -> dict[str, Any]:
                  for k, v in zip(keys, p, strict=True)}  # fmt: skip
         rng = (f"robot 0: default_rng(({job.seed}, {job.index})), robot i: "
                f"default_rng(({job.seed}, {job.index}, i))")  # fmt: skip
+    mode = getattr(job, "mode", "coverage")
+    w = job.world
+    default_steps = w.navigation_steps if mode == "navigation" else w.coverage_steps
     settings = {
         "WorldSettings": job.world, "ArenaSettings": job.arena, "PhysicsSettings": physics,
-        "max_steps": job.max_steps if job.max_steps is not None else job.world.coverage_steps,
+        "max_steps": job.max_steps if job.max_steps is not None else default_steps,
+        "mode": mode,
     }  # fmt: skip
     if colony is not None:
         settings["ColonySettings"] = colony
