@@ -5,6 +5,7 @@ squares shaded), the kill zone, the power station and docking box, the two light
 of their lit cones and the dark area. Figure 9: test fitness (% of the 64 inner squares) of each
 population's best individual per saved generation, 5 thin lines and their bold mean.
 ``figure_anytime``: anytime learning's best by generation in physics and in the table world.
+``docking_map``: where a navigation section docks from, each start coloured by its end.
 Figure 10: a chromosome's track from a start pose (the table interpreter) over the arena; for
 a colony (SPEC §7), every robot's track in its own colour from one colony start.
 Arena units (cm), x east, y north; headings 0 = north, clockwise.
@@ -183,6 +184,29 @@ def figure9(
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
+    return _save(fig, Path(path))
+
+
+END_COLOURS = {"docked": "tab:green", "kill zone": "tab:red", "power empty": "tab:blue",
+               "step limit": "black", "branch limit": "tab:purple"}  # fmt: skip
+"""Colour of each run end in the docking map."""
+
+
+def docking_map(
+    path: str | Path, starts: np.ndarray, ends: np.ndarray, world: WorldSettings, title: str
+) -> Path:
+    """Where a navigation section docks from: each start pose (S, 3) a dot over the arena,
+    coloured by how its run ended (``ends``: end codes, ``END_NAMES``)."""
+    fig, ax = plt.subplots(figsize=(6.2, 6.2))
+    draw_arena(ax, world)
+    ends = np.asarray(ends)
+    for code, name in enumerate(END_NAMES):
+        mine = ends == code
+        if mine.any():
+            ax.scatter(starts[mine, 0], starts[mine, 1], s=7, color=END_COLOURS[name],
+                       label=f"{name}: {mine.mean():.1%}", zorder=5)  # fmt: skip
+    ax.set_title(title, fontsize=9)
+    ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
     return _save(fig, Path(path))
 
 

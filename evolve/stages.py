@@ -14,7 +14,7 @@ settings, ``force`` deletes only the stage's own files, ``STAGE_FILES``, and sta
 Layout under the run folder ``out`` (the CLI's ``--out DIR``)::
 
     navigation/settings.json   navigation/best.txt   navigation/summary.json
-    navigation/best_pop{k}.txt navigation/history_pop{k}.csv
+    navigation/best_pop{k}.txt navigation/history_pop{k}.csv  navigation/docking.png
     navigation/populations/pop{k}_gen{g:04d}.npz  (population, fitness, best, starts)
     navigation/checkpoints/pop{k}.npz             (resume state; pop{k}_final.npz when done)
     coverage/...  the same, plus figure9.{csv,json,png}, best_pop{k}.txt, handoffs.csv,
@@ -83,7 +83,8 @@ NAVIGATION_GENERATIONS = navigation_ga_settings().generations
 """Generations of a navigation stage by default (SPEC §6: 1024)."""
 STAGE_FILES = (
     "summary.json", "best.txt", "best_pop*.txt", "history_pop*.csv", "figure9.*",
-    "figure10_pop*.png", "handoffs.csv", "populations/pop*_gen*.npz", "checkpoints/pop*.npz",
+    "figure10_pop*.png", "docking.png", "handoffs.csv", "populations/pop*_gen*.npz",
+    "checkpoints/pop*.npz",
 )  # fmt: skip
 """Every file a stage writes in its folder besides ``settings.json``: what ``force`` deletes."""
 RUN_RESULT_BYTES = 64
@@ -379,7 +380,10 @@ def _navigation_summary(
     stage: Stage, folder: Path, results: list[PopulationResult], test_starts: np.ndarray,
     table: GaitTable, ga: GASettings, world: WorldSettings, nav: NavigationSettings,
 ) -> dict[str, Any]:  # fmt: skip
-    """Choose the section, write ``best.txt`` and ``best_pop{k}.txt``; the summary."""
+    """Choose the section, write ``best.txt``, ``best_pop{k}.txt`` and ``docking.png``; the
+    summary."""
+    from evolve import figures
+
     cands = navigation_candidates(folder, results, ga, nav)
     sel_starts = stage.starts(selection_rng(ga.seed, stage.name), nav.selection_starts, world)
     sections = np.stack([c[2] for c in cands])
@@ -409,6 +413,12 @@ def _navigation_summary(
         generation=chosen_g,
     )  # fmt: skip
     write_chromosome(folder / "best.txt", chosen, header)
+    _, ev, _, _ = evaluate_sections(chosen[None], sel_starts, stage, table, world)
+    figures.docking_map(
+        folder / "docking.png", sel_starts, ev.end[0], world,
+        f"navigation/best.txt (generation {chosen_g} of population {chosen_k}) from "
+        f"{len(sel_starts)} selection starts: docked {sel_dock[c]:.1%}",
+    )  # fmt: skip
     return {
         "stage": "navigation",
         "dock_success": float(dock[0]),

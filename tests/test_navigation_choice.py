@@ -106,6 +106,7 @@ def test_the_chosen_section_is_the_candidate_that_docks_most_on_the_selection_st
     np.testing.assert_array_equal(read_chromosome(out / "navigation" / "best.txt"), best)
     # the selection starts are not the test starts: the reported rate is measured apart
     assert summary["selection"]["selection_starts"] == 200 and summary["test_starts"] == 30
+    assert (out / "navigation" / "docking.png").stat().st_size > 0  # where it docks from
 
 
 def test_final_candidates_only_compares_each_populations_final_best(tiny_navigation, tmp_path):
