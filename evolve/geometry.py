@@ -144,6 +144,8 @@ def packed_tuple(world: WorldSettings) -> tuple[float, ...]:
 @register_jitable
 def wrap360(a):
     """Angle in degrees wrapped into [0, 360)."""
+    if 0.0 < a < 360.0:  # already wrapped: what the modulo returns, without its cost
+        return a
     r = a % 360.0  # Python float modulo (numba implements the same), in [0, 360]
     if r >= 360.0:
         r -= 360.0

@@ -5,13 +5,16 @@ table world, running whole populations × start poses in parallel — one robot 
 Geometry (motion, sensors, squares, kill zone, docking, other robots' discs) is not copied:
 the kernels compile the very functions of ``evolve.geometry`` (``register_jitable``), so every
 float formula is the interpreter's, operation for operation, and ``fastmath`` stays off. Only
-the control flow is copied here. Both kernels take a gait cycle with its checks in ``_walk``
-and read a branch's sensors with ``_sense``; the colony moves its program counter with
-``_next_pc`` (``run_one`` spells that rule out, measured 3 % faster there).
+the control flow is copied here. Both kernels take a gait cycle with its checks in ``_walk``;
+a colony robot's object sensors (walls and discs) are ``_object_sense``; the colony moves its
+program counter with ``_next_pc`` (``run_one`` spells that rule out, measured 3 % faster).
 ``tests/test_kernel.py`` and ``tests/test_colony_kernel.py`` prove the kernels equal to the
 interpreter on random, hand-worked and evolved chromosomes.
 
-Speed: sensors are evaluated only when a branch reads them and only the ones its test needs;
+Speed: sensors are evaluated only when a branch reads them, only the ones its test needs, and
+once per pose: the branches between two steps (a colony robot's turn) share the pose's bits,
+pure functions of the pose and of the robots that do not move meanwhile (one robot's coverage
+1.34×, navigation 1.5× the rate of reading them anew);
 reached squares live in two uint64 masks; nothing allocates inside the loop. The P × S runs
 are flattened into one ``prange`` with dynamic chunks, for load balance. A lone robot passes
 the empty ``_NO_ROBOTS`` as the other robots. A colony keeps each robot's state in rows of
@@ -152,19 +155,12 @@ def _walk(gait, table, p, x, y, h, power, lo, hi, squares, inner, others, me, mi
 
 
 @njit(cache=True, inline="always")
-def _sense(mask, x, y, h, power, p, others, me, radius):
-    """Active sensors among those in ``mask``; object sensors see the walls and the discs of
-    ``others`` (but row ``me``)."""
-    active = 0
-    if (mask & LOW_POWER) and power < p[P_LOW]:
-        active |= LOW_POWER
-    if mask & _OBJECT_MASK:
-        active |= object_bits(x, y, h, p)
-        for j in range(others.shape[0]):
-            if j != me:
-                active |= disc_bits(x, y, h, others[j, 0], others[j, 1], radius, p)
-    if mask & _LIGHT_MASK:
-        active |= light_bits(x, y, h, p)
+def _object_sense(x, y, h, p, others, me, radius):
+    """Active object-sensor bits: the walls and the discs of ``others`` (but row ``me``)."""
+    active = object_bits(x, y, h, p)
+    for j in range(others.shape[0]):
+        if j != me:
+            active |= disc_bits(x, y, h, others[j, 0], others[j, 1], radius, p)
     return active
 
 
@@ -211,6 +207,8 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
     g = 0
     k = 0
     rem = loops[0]
+    seen_objects = -1  # the pose's object and light bits once a branch has read them
+    seen_lights = -1
     while True:
         in_nav = nav_run or g >= NAVIGATION_BASE
         if ops[g, k] == OP_GAIT:
@@ -220,6 +218,8 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
             )
             steps += 1
             branches = 0
+            seen_objects = -1
+            seen_lights = -1
             if end >= 0:
                 break
             if in_nav and docked(x, y, h, p):
@@ -248,6 +248,8 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
                         break
                 if stop:
                     break
+                seen_objects = -1  # (already: no branch since the docking step)
+                seen_lights = -1
                 g = 0
                 k = 0
                 rem = loops[0]
@@ -258,7 +260,16 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
         else:
             test = arg[g, k]
             mask = TEST_MASKS[test]
-            active = _sense(mask, x, y, h, power, p, _NO_ROBOTS, -1, 0.0)
+            # each sensor computed once per pose: the branches between two steps share it
+            active = LOW_POWER if (mask & LOW_POWER) and power < p[P_LOW] else 0
+            if mask & _OBJECT_MASK:
+                if seen_objects < 0:
+                    seen_objects = object_bits(x, y, h, p)
+                active |= seen_objects
+            if mask & _LIGHT_MASK:
+                if seen_lights < 0:
+                    seen_lights = light_bits(x, y, h, p)
+                active |= seen_lights
             branches += 1
             if branches >= max_branches:
                 end = END_BRANCH_LIMIT
@@ -453,10 +464,20 @@ def run_colony_one(code, nav_run, table, p, power0, max_steps, colony, pose, pow
             gait = backup
             end = -1
             if phase == PHASE_PROGRAM:
+                seen_objects = -1  # as in run_one: nothing moves during the turn's branches
+                seen_lights = -1
                 while ops[g, k] != OP_GAIT:
                     test = arg[g, k]
                     mask = TEST_MASKS[test]
-                    active = _sense(mask, x, y, h, pw, p, pose, i, radius)
+                    active = LOW_POWER if (mask & LOW_POWER) and pw < p[P_LOW] else 0
+                    if mask & _OBJECT_MASK:
+                        if seen_objects < 0:
+                            seen_objects = _object_sense(x, y, h, p, pose, i, radius)
+                        active |= seen_objects
+                    if mask & _LIGHT_MASK:
+                        if seen_lights < 0:
+                            seen_lights = light_bits(x, y, h, p)
+                        active |= seen_lights
                     branches += 1
                     if branches >= max_branches:
                         end = END_BRANCH_LIMIT
