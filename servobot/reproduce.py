@@ -235,79 +235,76 @@ class _Pipeline:
 
         def body() -> dict[str, Any]:
             res = self._validate_finalists(table)
-            res |= self._validate_navigation(table)
-            failed = [k for k, r in res.items() if "error" in r]
+            nav = self._validate_navigation(table)
+            failed = [f"finalist {k}" for k, r in res.items() if "error" in r]
+            failed += [f"the navigation section ({k})" for k, r in nav.items() if "error" in r]
             if failed:
                 raise ReproduceError(
-                    f"validation failed for finalist(s) {', '.join(failed)}; see the log above"
+                    f"validation failed for {', '.join(failed)}; see the log above"
                 )
-            return {"finalists": res}
+            return {"finalists": res, "navigation": nav}
 
         self.stage("validation", body, reports)
 
     def _validate_finalists(self, table: GaitTable) -> dict[str, Any]:
         """Physics validation of each coverage finalist; resumable finalist by finalist."""
         s, folder = self.s, self.out / "validation"
-        key = stage_key(s, "validation")
         starts = validation_starts(s, self.world)
         atomic_write_json(folder / "starts.json", {"starts": starts.tolist(), "seed": s.seed})
-        results: dict[str, Any] = {}
-        for k in range(s.coverage_populations):
-            sub = folder / f"pop{k}"
-            done = read_done(sub, key)
-            if done is not None and (sub / "report.json").exists():
-                results[str(k)] = {"skipped": True, "wall_s": done["wall_s"]}
-                continue
-            t0 = time.perf_counter()
-            try:
-                validate(
-                    read_chromosome(self.out / "coverage" / f"best_pop{k}.txt"), starts,
-                    table=table, world=self.world, out_dir=sub, rrd=True, executor=self.executor,
-                    max_steps=s.validate_max_steps, model=s.model, on_run=self.on_run,
-                    meta={"finalist": k, "source": f"coverage/best_pop{k}.txt"},
-                )  # fmt: skip
-            except ValidationError as exc:  # a bad finalist must not stop the others
-                self.log(f"validation of finalist {k} failed: {exc}")
-                results[str(k)] = {"error": str(exc)}
-                continue
-            wall = time.perf_counter() - t0
-            write_done(sub, key, wall)
-            results[str(k)] = {"skipped": False, "wall_s": round(wall, 3)}
-        return results
+        return {
+            str(k): self._validate_into(
+                folder / f"pop{k}",
+                f"finalist {k}",
+                read_chromosome(self.out / "coverage" / f"best_pop{k}.txt"),
+                starts,
+                table,
+                rrd=True,
+                max_steps=s.validate_max_steps,
+                meta={"finalist": k, "source": f"coverage/best_pop{k}.txt"},
+            )  # fmt: skip
+            for k in range(s.coverage_populations)
+        }
 
     def _validate_navigation(self, table: GaitTable) -> dict[str, Any]:
         """Physics validation of the navigation section alone (navigation mode): from fresh
         navigation starts and from hand-off poses of the coverage finalists; resumable."""
-        s, folder = self.s, self.out / "validation"
-        key = stage_key(s, "validation")
         section = read_chromosome(self.out / "navigation" / "best.txt")
-        fresh, handoffs, powers = navigation_validation_starts(s, self.world, self.out)
+        fresh, handoffs, powers = navigation_validation_starts(self.s, self.world, self.out)
         results: dict[str, Any] = {}
-        for name, starts, volts in (("navigation_fresh", fresh, None),
-                                    ("navigation_handoffs", handoffs, powers)):  # fmt: skip
-            sub = folder / name
-            done = read_done(sub, key)
-            if done is not None and (sub / "report.json").exists():
-                results[name] = {"skipped": True, "wall_s": done["wall_s"]}
-                continue
+        for name, starts, volts in zip(NAVIGATION_VALIDATIONS, (fresh, handoffs), (None, powers),
+                                       strict=True):  # fmt: skip
             if not len(starts):
                 results[name] = {"skipped": True, "wall_s": 0.0, "note": "no poses"}
                 continue
-            t0 = time.perf_counter()
-            try:
-                validate(
-                    section, starts, table=table, world=self.world, out_dir=sub,
-                    executor=self.executor, model=s.model, on_run=self.on_run, powers=volts,
-                    meta={"source": "navigation/best.txt", "starts": name},
-                )  # fmt: skip
-            except ValidationError as exc:
-                self.log(f"validation of the navigation section ({name}) failed: {exc}")
-                results[name] = {"error": str(exc)}
-                continue
-            wall = time.perf_counter() - t0
-            write_done(sub, key, wall)
-            results[name] = {"skipped": False, "wall_s": round(wall, 3)}
+            results[name] = self._validate_into(
+                self.out / "validation" / name, f"the navigation section ({name})", section,
+                starts, table, powers=volts,
+                meta={"source": "navigation/best.txt", "starts": name},
+            )  # fmt: skip
         return results
+
+    def _validate_into(
+        self, sub: Path, what: str, bits: np.ndarray, starts: np.ndarray, table: GaitTable,
+        **kwargs: Any,
+    ) -> dict[str, Any]:  # fmt: skip
+        """One validation into ``sub`` (skipped if it finished with these settings); a bad
+        input is this validation's ``error`` and must not stop the others."""
+        key = stage_key(self.s, "validation")
+        done = read_done(sub, key)
+        if done is not None and (sub / "report.json").exists():
+            return {"skipped": True, "wall_s": done["wall_s"]}
+        t0 = time.perf_counter()
+        try:
+            validate(
+                bits, starts, table=table, world=self.world, out_dir=sub,
+                executor=self.executor, model=self.s.model, on_run=self.on_run, **kwargs,
+            )  # fmt: skip
+        except ValidationError as exc:
+            self.log(f"validation of {what} failed: {exc}")
+            return {"error": str(exc)}
+        wall = time.perf_counter() - t0
+        write_done(sub, key, wall)
+        return {"skipped": False, "wall_s": round(wall, 3)}
 
 
 def navigation_validation_starts(
