@@ -63,9 +63,9 @@ DEFAULT_OUT = Path("runs/validate")
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(
         prog="servobot validate",
-        description="Run a 16-gene chromosome from start poses in the table simulation and "
-        "in MuJoCo physics; report squares, inner squares, docks, steps, end reasons and the "
-        "table-vs-physics gap.",
+        description="Run a 16-gene chromosome (or an 8-gene navigation section, in navigation "
+        "mode) from start poses in the table simulation and in MuJoCo physics; report squares, "
+        "inner squares, docks, steps, end reasons and the table-vs-physics gap.",
     )
     p.add_argument(
         "chromosome",
