@@ -142,13 +142,17 @@ def clear_navigation_starts(
 ) -> np.ndarray:
     """(n, 3) navigation starts (SPEC §6 region, ``evolve.starts.navigation_starts``) that the
     physics arena can hold: poses overlapping the station block are drawn again."""
-    arena = arena or ArenaSettings()
     out = np.empty((0, 3))
     while len(out) < n:
         poses = navigation_starts(rng, n, world)
-        keep = [not overlaps_station(x, y, world, arena) for x, y, _ in poses]
-        out = np.concatenate([out, poses[keep]])
+        out = np.concatenate([out, poses[_holdable(poses, world, arena)]])
     return out[:n]
+
+
+def _holdable(poses: np.ndarray, world: WorldSettings, arena: ArenaSettings | None) -> np.ndarray:
+    """Which poses (N, 3) the physics arena can hold: not overlapping the station block."""
+    arena = arena or ArenaSettings()
+    return np.array([not overlaps_station(x, y, world, arena) for x, y, _ in poses], bool)
 
 
 def sample_poses(
@@ -158,8 +162,7 @@ def sample_poses(
     """The poses (and their powers) that the physics arena can hold — those overlapping the
     station block are left out — all of them (``n`` None) or ``n`` drawn without replacement,
     in file order; ``ValidationError`` when fewer than ``n`` (or none) remain."""
-    arena = arena or ArenaSettings()
-    keep = np.array([not overlaps_station(x, y, world, arena) for x, y, _ in poses], bool)
+    keep = _holdable(poses, world, arena)
     poses, powers = poses[keep], None if powers is None else powers[keep]
     if not len(poses) or (n is not None and n > len(poses)):
         raise ValidationError(
@@ -297,6 +300,8 @@ def run_start(job: StartJob) -> dict[str, Any]:
         return _record(res, time.perf_counter() - t0), res.track
 
     out = {"index": job.index, "start": start_record(job.start)}
+    if job.power is not None:
+        out["power"] = job.power
     last = {"steps": 0, "squares": 0, "pose": [x, y, h]}
     return run_both_worlds(out, rec, table_run, physics_run, last)
 

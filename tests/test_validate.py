@@ -198,6 +198,7 @@ def test_a_navigation_section_runs_in_navigation_mode_from_its_powers(tmp_path):
     assert rep["settings"]["mode"] == "navigation"
     assert rep["settings"]["max_steps"] == world.navigation_steps
     full, weak = rep["runs"]
+    assert (full["power"], weak["power"]) == (4.0, 2.9)  # recorded with each run
     # 2.9 V leaves (2.9 - 2.7) / 0.0209 = 9.6 cycles before the power runs out; 4.0 V docks
     for w in ("table", "physics"):
         assert full[w]["end"]["name"] == "docked" and full[w]["docks"] == 1
