@@ -47,7 +47,6 @@ import numpy as np
 
 from evolve.codec import format_chromosome, parse_chromosome
 from evolve.population import (
-    STAGE_IDS,
     Generation,
     OnGeneration,
     PopulationResult,
@@ -55,6 +54,7 @@ from evolve.population import (
     Stage,
     StageError,
     evaluate_sections,
+    stage_rng,
     stage_seeds,
 )
 from evolve.settings import GASettings, WorldSettings
@@ -244,16 +244,9 @@ def _num(v: Any) -> float | None:
 # --------------------------------------------------------------------------- seeds, state
 
 
-def anytime_rng(seed: int, *key: int) -> np.random.Generator:
-    """The generator of one of anytime's own draws: ``SeedSequence([seed, anytime id, *key])``
-    (key (0,): the final test; (1, g): the punctuation at generation g)."""
-    seq = np.random.SeedSequence([int(seed), STAGE_IDS["anytime"], *key])
-    return np.random.Generator(np.random.PCG64(seq))
-
-
 def final_starts(seed: int, n: int, world: WorldSettings) -> tuple[np.ndarray, int]:
     """(start poses (n, 3), servo-noise seed) of the final test, shared by every population."""
-    rng = anytime_rng(seed, 0)
+    rng = stage_rng(seed, "anytime", 0)
     return coverage_starts(rng, n, world), int(rng.integers(2**62))
 
 
@@ -324,7 +317,7 @@ def _measure(
     settings: AnytimeSettings, test_in_physics: PhysicsTester,
 ) -> dict[str, Any]:  # fmt: skip
     """Run the chosen genomes in physics and in the table world; the punctuation's record."""
-    rng = anytime_rng(ga.seed, 1, g)
+    rng = stage_rng(ga.seed, "anytime", 1, g)
     starts = stage.starts(rng, settings.physics_starts, world)
     seed = int(rng.integers(2**62))
     by_k = {r.k: r for r in runs}
@@ -567,7 +560,6 @@ __all__ = [
     "OnPunctuation",
     "PhysicsRun",
     "PhysicsTester",
-    "anytime_rng",
     "bias_rule",
     "corrected_table",
     "evolve_anytime",

@@ -57,7 +57,7 @@ class Handoff:
 
 
 class _Watcher:
-    """Follows one run's events and records its hand-offs."""
+    """Follows one run's events: the hand-offs that ended in a dock, and the one still open."""
 
     def __init__(self, pose: tuple[float, float, float], power: float) -> None:
         self.last: tuple[tuple[float, float, float], float, int] = (pose, power, 0)
@@ -66,22 +66,13 @@ class _Watcher:
         self.found: list[Handoff] = []
 
     def __call__(self, e: StepEvent) -> None:
-        if e.kind == "gait" and e.mode == "navigation" and self.mode != "navigation":
-            self.open = self.last
         if e.kind == "gait":
+            if e.mode == "navigation" and self.mode != "navigation":
+                self.open = self.last
             self.mode = e.mode
-        if self.open is not None and e.kind in ("charge", "end"):
-            if e.kind == "charge":
-                outcome = DOCKED
-            elif e.text == f"end: {END_NAMES[END_STEP_LIMIT]}":
-                outcome = CUT
-            else:
-                outcome = e.text.removeprefix("end: ")
-            pose, power, step = self.open
-            self.found.append(Handoff(pose, power, step, outcome))
+        elif e.kind == "charge" and self.open is not None:
+            self.found.append(Handoff(*self.open, DOCKED))
             self.open = None
-        if e.kind == "charge":
-            self.mode = "charging"
         self.last = (e.pose, e.power, e.step)
 
 
@@ -100,7 +91,11 @@ def collect_handoffs(
     for x, y, h in np.asarray(starts, dtype=float):
         watch = _Watcher((float(x), float(y), float(h)), world.start_power_v)
         tw = TableWorld(values, x, y, h, world)
-        run(chromosome, tw, mode="coverage", settings=world, max_steps=max_steps, on_event=watch)
+        res = run(chromosome, tw, mode="coverage", settings=world, max_steps=max_steps,
+                  on_event=watch)  # fmt: skip
+        if watch.open is not None:  # the run ended before the approach docked
+            end = CUT if res.end == END_STEP_LIMIT else END_NAMES[res.end]
+            watch.found.append(Handoff(*watch.open, end))
         out.append(watch.found)
     return out
 
@@ -144,7 +139,10 @@ def parse_poses(text: str, *, name: str = "<poses>") -> tuple[np.ndarray, np.nda
     """(poses (N, 3), powers (N,) or None) from CSV text with a header naming ``x``, ``y``,
     ``h`` and optionally ``power`` (other columns ignored, e.g. ``handoffs.csv``). Every value
     must be a finite number; ``PosesError`` names the line otherwise."""
-    rows = list(csv.reader(io.StringIO(text)))
+    try:  # one row a line, whatever the line ends (\n, \r\n, \r)
+        rows = list(csv.reader(text.splitlines()))
+    except csv.Error as exc:
+        raise PosesError(f"{name}: not CSV ({exc})") from exc
     if not rows or not any(rows[0]):
         raise PosesError(f"{name}: empty; expected a CSV header with columns x, y, h [, power]")
     head = [c.strip() for c in rows[0]]

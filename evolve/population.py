@@ -156,11 +156,12 @@ def stage_seeds(
     return SpawnedSeeds(root, 0, 1)[0], SpawnedSeeds(root, 1, populations)
 
 
-def selection_rng(seed: int, stage: str) -> np.random.Generator:
-    """The generator of a stage's selection starts (navigation: the poses on which the
-    candidate sections are compared): ``SeedSequence([seed, stage id, 1])``, independent of
-    the test starts and of every population."""
-    seq = np.random.SeedSequence([int(seed), STAGE_IDS[stage], 1])
+def stage_rng(seed: int, stage: str, *key: int) -> np.random.Generator:
+    """A generator of one of a stage's own draws beside its populations and test starts:
+    ``SeedSequence([seed, stage id, *key])`` (navigation (1,): the selection starts on which
+    the candidate sections are compared; anytime (0,): the final test, (1, g): the
+    punctuation at generation g), independent of ``stage_seeds``' children."""
+    seq = np.random.SeedSequence([int(seed), STAGE_IDS[stage], *key])
     return np.random.Generator(np.random.PCG64(seq))
 
 
@@ -427,7 +428,7 @@ __all__ = [
     "generation_record",
     "run_population_job",
     "save_generations",
-    "selection_rng",
+    "stage_rng",
     "stage_seeds",
     "write_history",
 ]

@@ -54,7 +54,7 @@ from evolve.population import (
     generation_record,
     run_population_job,
     save_generations,
-    selection_rng,
+    stage_rng,
     stage_seeds,
 )
 from evolve.settings import (
@@ -366,14 +366,15 @@ def navigation_candidates(
 def _dock_stats(
     sections: np.ndarray, starts: np.ndarray, stage: Stage, table: GaitTable, world: WorldSettings
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per section: (mean run fitness, dock rate, mean steps to dock (NaN if none), docked
+    """Per section: (mean run fitness, dock rate, mean steps to dock (NaN if none), end codes
     (C, S)) on ``starts``."""
     run_fit, ev, _, inverse = evaluate_sections(sections, starts, stage, table, world)
-    docked = (np.asarray(ev.end) == END_DOCKED)[inverse]
+    ends = np.asarray(ev.end)[inverse]
+    docked = ends == END_DOCKED
     steps = np.asarray(ev.steps, dtype=float)[inverse]
     with np.errstate(invalid="ignore"):
         mean_steps = np.where(docked, steps, 0.0).sum(axis=1) / docked.sum(axis=1)
-    return run_fit.mean(axis=1), docked.mean(axis=1), mean_steps, docked
+    return run_fit.mean(axis=1), docked.mean(axis=1), mean_steps, ends
 
 
 def _navigation_summary(
@@ -385,9 +386,9 @@ def _navigation_summary(
     from evolve import figures
 
     cands = navigation_candidates(folder, results, ga, nav)
-    sel_starts = stage.starts(selection_rng(ga.seed, stage.name), nav.selection_starts, world)
+    sel_starts = stage.starts(stage_rng(ga.seed, stage.name, 1), nav.selection_starts, world)
     sections = np.stack([c[2] for c in cands])
-    sel_fit, sel_dock, _, _ = _dock_stats(sections, sel_starts, stage, table, world)
+    sel_fit, sel_dock, _, sel_ends = _dock_stats(sections, sel_starts, stage, table, world)
     c = choose_section(sel_dock, sel_fit, nav.criterion)
     chosen_k, chosen_g, chosen = cands[c]
     finals = np.stack([r.best for r in results])
@@ -413,9 +414,8 @@ def _navigation_summary(
         generation=chosen_g,
     )  # fmt: skip
     write_chromosome(folder / "best.txt", chosen, header)
-    _, ev, _, _ = evaluate_sections(chosen[None], sel_starts, stage, table, world)
     figures.docking_map(
-        folder / "docking.png", sel_starts, ev.end[0], world,
+        folder / "docking.png", sel_starts, sel_ends[c], world,
         f"navigation/best.txt (generation {chosen_g} of population {chosen_k}) from "
         f"{len(sel_starts)} selection starts: docked {sel_dock[c]:.1%}",
     )  # fmt: skip

@@ -10,6 +10,8 @@ coverage sampler's poses.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from evolve.settings import ColonySettings, WorldSettings
@@ -43,13 +45,26 @@ def navigation_training_starts(
     ``world.dock_point`` that grows linearly from ``first_radius`` at generation 0 to the whole
     region at ``ramp_generations``, drawn by rejection in batches of n (once the radius
     covers the region, exactly ``navigation_starts``' poses)."""
-    radius = growing_radius(world, generation, first_radius, ramp_generations)
-    out = np.empty((0, 3))
+    r2 = growing_radius(world, generation, first_radius, ramp_generations) ** 2
     dx, dy = world.dock_point
+    return navigation_starts_where(
+        rng, n, world, lambda p: (p[:, 0] - dx) ** 2 + (p[:, 1] - dy) ** 2 <= r2
+    )
+
+
+def navigation_starts_where(
+    rng: np.random.Generator,
+    n: int,
+    world: WorldSettings,
+    keep: Callable[[np.ndarray], np.ndarray],
+) -> np.ndarray:
+    """(n, 3) navigation starts (SPEC §6 region) that ``keep`` accepts, by rejection:
+    ``navigation_starts`` batches of n, each filtered by ``keep(poses)`` (a boolean mask),
+    until n are kept, in the order drawn."""
+    out = np.empty((0, 3))
     while len(out) < n:
         poses = navigation_starts(rng, n, world)
-        keep = (poses[:, 0] - dx) ** 2 + (poses[:, 1] - dy) ** 2 <= radius**2
-        out = np.concatenate([out, poses[keep]])
+        out = np.concatenate([out, poses[keep(poses)]])
     return out[:n]
 
 
@@ -107,5 +122,6 @@ __all__ = [
     "coverage_starts",
     "growing_radius",
     "navigation_starts",
+    "navigation_starts_where",
     "navigation_training_starts",
 ]

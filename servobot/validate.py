@@ -48,7 +48,7 @@ from evolve import geometry
 from evolve.codec import FULL_GENES, SECTION_GENES, check_bits, format_chromosome
 from evolve.interpreter import END_NAMES, run
 from evolve.settings import WorldSettings
-from evolve.starts import navigation_starts
+from evolve.starts import navigation_starts_where
 from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
 from infra.bounds import LIMITS, Need, check_int, check_need
@@ -142,11 +142,7 @@ def clear_navigation_starts(
 ) -> np.ndarray:
     """(n, 3) navigation starts (SPEC §6 region, ``evolve.starts.navigation_starts``) that the
     physics arena can hold: poses overlapping the station block are drawn again."""
-    out = np.empty((0, 3))
-    while len(out) < n:
-        poses = navigation_starts(rng, n, world)
-        out = np.concatenate([out, poses[_holdable(poses, world, arena)]])
-    return out[:n]
+    return navigation_starts_where(rng, n, world, lambda p: _holdable(p, world, arena))
 
 
 def _holdable(poses: np.ndarray, world: WorldSettings, arena: ArenaSettings | None) -> np.ndarray:
