@@ -3,7 +3,7 @@ on each executor.
 
 Prints rates, asserts nothing. Run: ``python -m calibration.bench [--cycles N]
 [--executors serial process ray] [--workers 2]``. The cost of a validation run against this
-bare cycle is ``python -m servobot.validation_bench``.
+bare cycle is ``python -m servobot.validation.bench``.
 """
 
 from __future__ import annotations

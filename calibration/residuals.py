@@ -5,7 +5,7 @@ world) and logs every gait cycle the interpreter executes as (gait, pose before,
 ``residuals(log, table)`` turns that log into each cycle's move (F, T cm, dH deg, in the frame
 the robot had when the cycle began: ``servo_mj.robot.bot.displacement``) minus the table row of
 its gait. The diagnostic ``python -m calibration.gap`` prints them per gait; anytime learning
-(``servobot.anytime``, method ``model``) corrects the gait table with them.
+(``servobot.anytime.run``, method ``model``) corrects the gait table with them.
 """
 
 from __future__ import annotations

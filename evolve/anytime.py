@@ -28,7 +28,7 @@ The loop, populations in lockstep (each a ``PopulationRun`` seeded as coverage's
         each population: commit(f')                                # elite and roulette on f'
 
 Physics stays outside this module (``evolve`` imports no MuJoCo): the caller passes a
-``PhysicsTester`` (``servobot.anytime``). Each punctuation is a file written once,
+``PhysicsTester`` (``servobot.anytime.run``). Each punctuation is a file written once,
 ``punctuations/gen{g:04d}.json``; what a generation needs (biases, the corrected table) is a
 function of these records, so a resumed run, its populations back at their checkpoints,
 replays to the same numbers bit for bit without running physics again.

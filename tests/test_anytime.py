@@ -1,4 +1,4 @@
-"""Anytime learning (``evolve.anytime``, ``servobot.anytime``, ``servobot anytime``).
+"""Anytime learning (``evolve.anytime``, ``servobot.anytime.run``, ``servobot anytime``).
 
 The rules on hand-made cases (the fitness bias, the table correction); the lockstep loop with
 a fake physics (fast: no MuJoCo) — table-only equals ``servobot evolve coverage``, biases and
@@ -35,7 +35,7 @@ from evolve.population import PopulationRun
 from evolve.settings import GASettings, WorldSettings
 from evolve.table import PAPER_TABLE, load_table
 from infra.executors import SerialExecutor
-from servobot.anytime import run_anytime
+from servobot.anytime.run import run_anytime
 from servobot.cli import main as servobot
 
 TABLE = load_table("paper")
@@ -372,9 +372,9 @@ def test_run_anytime_resumes_after_an_interrupt(nav_file, tmp_path):
 
 
 def test_bench_numbers_on_hand_made_summaries():
-    """``servobot.anytime_bench``: the difference from the control, Spearman over the tested,
+    """``servobot.anytime.bench``: the difference from the control, Spearman over the tested,
     and the wall time against the table-only run (the control's table time)."""
-    from servobot.anytime_bench import numbers
+    from servobot.anytime.bench import numbers
 
     def run(method, phys, pairs, table_s, physics_s):
         tested = [{"table_fitness": a, "physics_fitness": b} for a, b in pairs]

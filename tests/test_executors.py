@@ -33,9 +33,9 @@ from infra.executors import (
     run_in_order,
     values_or_raise,
 )
-from servobot.anytime import run_anytime
+from servobot.anytime.run import run_anytime
 from servobot.cli import evolve as evolve_cli
-from servobot.validate import validate
+from servobot.validation.lone import validate
 
 TABLE = load_table("paper")
 # Gene 0 forever: gait 8, branch to gene 1 when both object sensors see something; gene 1:

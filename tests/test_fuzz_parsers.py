@@ -25,7 +25,7 @@ from infra.errors import InputError
 from infra.io import read_json
 from infra.rundir import RECORD_FILE, RunDirError, run_folder
 from servo_mj.robot.gaits import MAX_TARGET_RAD, GaitLibrary
-from servobot.reproduce import DONE, read_done
+from servobot.reproduce.run import DONE, read_done
 
 FUZZ = settings(
     max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]

@@ -19,7 +19,7 @@ from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE
 from infra.io import OutputError
 from servo_mj.world import physics_world
-from servobot import validate as validation
+from servobot.validation import lone as validation
 from servobot.cli import main as servobot
 from servobot.recording import Recording
 

@@ -132,4 +132,4 @@ def test_the_layer_check_sees_a_violation() -> None:
     assert _layer("evolve.kernel") == "evolve"
     assert _layer("servobot.cli.validate") == "servobot.cli"
     assert "servo_mj.robot" not in LAYER_DEPS["evolve"]
-    assert "servo_mj.world.physics_world" in GRAPH["servobot.validate"]
+    assert "servo_mj.world.physics_world" in GRAPH["servobot.validation.lone"]

@@ -37,7 +37,7 @@ from servobot.recording import (
 )
 from servobot.recording.frames import bearing_dir, roll_pitch_deg, yaw_quat_xyzw
 from servobot.recording.runs import step_time_s
-from servobot.validate import StartJob, run_start
+from servobot.validation.lone import StartJob, run_start
 
 REPO = Path(__file__).resolve().parents[1]
 ROBOT = "/world/robots/servobot"

@@ -14,7 +14,7 @@ from evolve.codec import read_chromosome
 from evolve.table import load_table
 from infra.rundir import RunDirError
 from servobot.cli.reproduce import main
-from servobot.reproduce import (
+from servobot.reproduce.run import (
     ReproduceError,
     ReproduceSettings,
     quick_settings,
@@ -150,7 +150,7 @@ def test_cli_rejects_bad_budget(tmp_path: Path, capsys: pytest.CaptureFixture) -
 
 
 def test_failed_stage_is_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import servobot.reproduce as rp
+    import servobot.reproduce.run as rp
 
     def broken(*_a, **_k):
         raise ReproduceError("calibration failed (test)")
@@ -166,7 +166,7 @@ def test_failed_stage_is_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
 
 def test_force_would_delete_exactly_the_files_a_run_wrote(run_dir: tuple[Path, dict]) -> None:
     from infra.rundir import LOCK_FILE, RECORD_FILE, owned_files
-    from servobot.reproduce import REPRODUCE_FILES
+    from servobot.reproduce.run import REPRODUCE_FILES
 
     out, _ = run_dir
     written = {p for p in out.rglob("*") if p.is_file() and p.name != LOCK_FILE}

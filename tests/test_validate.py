@@ -16,7 +16,7 @@ from evolve.table import PAPER_TABLE, load_table, table_to_json
 from infra.executors import SerialExecutor
 from servo_mj.world import physics_world
 from servobot.cli import validate as validate_cli
-from servobot.validate import ValidationError, validate
+from servobot.validation.lone import ValidationError, validate
 
 GENE_8 = "01 0100000 0100000 0100000 0100000\n"
 BITS = parse_chromosome(GENE_8 * 16)

@@ -31,8 +31,8 @@ from servo_mj.robot.variant import (
 from servo_mj.world.arena import default_robot
 from servo_mj.world.physics_world import PhysicsWorld
 from servobot.cli import main as servobot
-from servobot.reproduce import ReproduceSettings, reproduce
-from servobot.validate import ValidationError, load_checked_table
+from servobot.reproduce.run import ReproduceSettings, reproduce
+from servobot.validation.lone import ValidationError, load_checked_table
 
 HEAVY = VariantParams(torso_mass_kg=1.14)
 """The issue's example: the torso 50 % heavier."""

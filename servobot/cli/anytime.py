@@ -1,6 +1,6 @@
 """``servobot anytime``: coverage learning with physics punctuations (anytime learning).
 
-A thin layer over ``servobot.anytime.run_anytime``::
+A thin layer over ``servobot.anytime.run.run_anytime``::
 
     servobot anytime --navigation FILE [--table paper|PATH] [--method none|bias|model]
                      [--every K] [--top T] [--physics-starts M] [--physics-steps N]
@@ -93,7 +93,7 @@ def anytime_settings(args: argparse.Namespace) -> AnytimeSettings:
 
 
 def _print(summary: dict[str, Any], out: Path) -> None:
-    from servobot.anytime_report import percent as pct
+    from servobot.anytime.report import percent as pct
 
     f = summary["final"]
     print(
@@ -113,8 +113,8 @@ def _print(summary: dict[str, Any], out: Path) -> None:
 
 
 def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
-    from servobot.anytime import run_anytime
-    from servobot.validate import load_checked_table
+    from servobot.anytime.run import run_anytime
+    from servobot.validation.lone import load_checked_table
 
     args.stage = "coverage"  # ga_settings: coverage's defaults
     ga = ga_settings(args)

@@ -1,7 +1,7 @@
 """``servobot reproduce``: the end-to-end reproduction into one run folder (resumable).
 
 Parses the options, shows progress and prints where the report is;
-``servobot.reproduce.reproduce`` does the work. Bad input exits 2 before any stage runs;
+``servobot.reproduce.run.reproduce`` does the work. Bad input exits 2 before any stage runs;
 Ctrl-C exits 130 keeping the finished stages and checkpoints (``servobot.cli.runner``).
 """
 
@@ -18,8 +18,8 @@ from infra.bounds import check_int
 from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.cli.runner import Interrupted, command_line, run_command
 from servobot.progress import GenerationBars
-from servobot.reproduce import reproduce, resolve_settings
-from servobot.reproduce_report import format_seconds
+from servobot.reproduce.run import reproduce, resolve_settings
+from servobot.reproduce.report import format_seconds
 
 PROG = "servobot reproduce"
 

@@ -8,7 +8,7 @@ the ``--poses FILE`` poses and powers (e.g. a coverage stage's ``handoffs.csv``)
 ``tracks.npz`` (and ``run{k}.rrd`` with ``--rrd``) into ``--out``. With ``--robots R`` each
 start is a colony of R robots sharing the station (SPEC §7): N colony starts drawn by
 ``evolve.starts.colony_starts``, or the ``--start`` poses taken R at a time; it also writes
-``tracks{k}.png`` (``servobot.colony_validate``). Prints the per-start table
+``tracks{k}.png`` (``servobot.validation.colony``). Prints the per-start table
 and the summary. Exit status: 0 = all runs finished, 1 = some physics runs failed (their
 errors are in the report), 2 = bad input (message names the problem; checked before any
 run), 130 = interrupted (``servobot.cli.runner``). ``--force`` replaces a validation made
@@ -38,9 +38,9 @@ from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings
 from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.cli.runner import EXIT_FAILED, Interrupted, command_line, run_command
-from servobot.colony_report import colony_run_rows, colony_summary_lines
-from servobot.colony_validate import check_colony_starts, validate_colony
-from servobot.validate import (
+from servobot.validation.colony_report import colony_run_rows, colony_summary_lines
+from servobot.validation.colony import check_colony_starts, validate_colony
+from servobot.validation.lone import (
     ValidationError,
     check_chromosome,
     check_start,
@@ -50,7 +50,7 @@ from servobot.validate import (
     validate,
     validation_need,
 )
-from servobot.validation_report import run_rows, summary_lines
+from servobot.validation.report import run_rows, summary_lines
 
 PROG = "servobot validate"
 
@@ -249,7 +249,7 @@ def _drawn_poses(
     args: argparse.Namespace, world: WorldSettings, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The ``--poses`` file's poses the physics arena can hold, all of them or ``--starts N``
-    drawn without replacement (``servobot.validate.sample_poses``)."""
+    drawn without replacement (``servobot.validation.lone.sample_poses``)."""
     poses, powers = read_poses(args.poses)
     try:
         return sample_poses(poses, powers, args.starts, rng, world)

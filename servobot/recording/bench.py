@@ -5,7 +5,7 @@
     python -m servobot.recording.bench CHROMOSOME [--start X Y H] [--steps N] [--repeats K]
                                        [--out DIR]
 
-Runs ``servobot.validate.run_start`` (table world + physics world, the default settings and
+Runs ``servobot.validation.lone.run_start`` (table world + physics world, the default settings and
 servo noise) ``K`` times without and ``K`` times with a recording, alternating, and prints the
 CPU time of each, the CPU spent inside the recording hooks (``RunRecorder``'s methods,
 ``close`` included), the ratio with/without, and the file's size; then the same for a
@@ -34,7 +34,7 @@ from evolve.table import PAPER_TABLE
 from servo_mj.world.arena import ArenaSettings
 from servobot.recording import runs
 from servobot.recording.style import RecordingSettings
-from servobot.validate import StartJob, run_start
+from servobot.validation.lone import StartJob, run_start
 
 HOOKS = ("table_event", "attach_physics", "on_frame", "physics_event", "error", "close")
 """The ``RunRecorder`` methods a run calls; their CPU time is the cost of recording."""

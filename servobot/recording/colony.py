@@ -167,7 +167,7 @@ class ColonyRecorder:
 
     @classmethod
     def for_validation(cls, job: Any) -> ColonyRecorder:
-        """The recorder of one ``servobot.colony_validate.ColonyJob`` (it has ``rrd_path``)."""
+        """The recorder of one ``servobot.validation.colony.ColonyJob`` (it has ``rrd_path``)."""
         physics = job.physics or PhysicsSettings()
         props = validation_properties(job, physics)
         return cls(job.rrd_path, world=job.world, starts=job.start, physics=physics,

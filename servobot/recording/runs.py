@@ -87,7 +87,7 @@ class RunRecorder:
 
     @classmethod
     def for_validation(cls, job: Any) -> RunRecorder:
-        """The recorder of one ``servobot.validate.StartJob`` (it has ``rrd_path``)."""
+        """The recorder of one ``servobot.validation.lone.StartJob`` (it has ``rrd_path``)."""
         physics = job.physics or PhysicsSettings()
         return cls(
             job.rrd_path, world=job.world, start=job.start, physics=physics,
@@ -161,7 +161,7 @@ class RunRecorder:
 
 def validation_properties(job: Any, physics: PhysicsSettings) -> dict[str, Any]:
     """Properties of a validation run: chromosome, start, seed, gait table and settings. A
-    colony run's job (``servobot.colony_validate.ColonyJob``) has R start poses and its
+    colony run's job (``servobot.validation.colony.ColonyJob``) has R start poses and its
     ``ColonySettings``."""
     table = np.asarray(job.table, dtype=np.float64)
     keys = ("x_cm", "y_cm", "heading_deg")
@@ -195,7 +195,7 @@ def validation_properties(job: Any, physics: PhysicsSettings) -> dict[str, Any]:
 
 def result_fields(record: dict[str, Any]) -> dict[str, Any]:
     """A run's outcome as flat property fields: ``record`` maps a world name to its result —
-    a ``servobot.validate`` run record or an ``evolve.interpreter.RunResult`` — and may hold
+    a ``servobot.validation.lone`` run record or an ``evolve.interpreter.RunResult`` — and may hold
     an ``error``."""
     out: dict[str, Any] = {}
     for world in ("table", "physics"):

@@ -19,7 +19,7 @@ from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE, load_table
 from infra.io import atomic_write_text
 from servo_mj.robot.model import model_label
-from servobot.reproduce_settings import STAGES, ReproduceSettings
+from servobot.reproduce.settings import STAGES, ReproduceSettings
 
 
 def _load_json(path: Path) -> dict[str, Any] | None:

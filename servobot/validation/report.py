@@ -1,6 +1,6 @@
 """The validation report: per-world summaries, the table-vs-physics gap, Markdown and files.
 
-Pure functions over the per-run records that ``servobot.validate.validate`` collects; see
+Pure functions over the per-run records that ``servobot.validation.lone.validate`` collects; see
 that module for the record layout.
 """
 

@@ -1,5 +1,5 @@
 """The colony validation report: per-world summaries, the table-vs-physics gap, Markdown, the
-track figures and the files (``servobot.colony_validate`` collects the per-run records).
+track figures and the files (``servobot.validation.colony`` collects the per-run records).
 
 Per world: the colony's squares and inner squares (% of the 64 inner squares, the union of
 the robots'), the robots' own coverage, docks, how they ended, station waits and blocked
@@ -18,7 +18,7 @@ import numpy as np
 from evolve.figures import DPI, draw_arena, draw_colony_robot
 from evolve.settings import WorldSettings
 from infra.io import atomic_write
-from servobot.validation_report import markdown_document, write_report
+from servobot.validation.report import markdown_document, write_report
 
 WORLDS = ("table", "physics")
 

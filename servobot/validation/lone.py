@@ -27,7 +27,7 @@ the sizes are checked (``validation_need``) and ``out_dir`` is taken as a run fo
 ``force``, which deletes only ``VALIDATION_FILES``). An interrupted run's recording is
 discarded, never left truncated at its final path.
 
-A colony of R robots sharing the station (SPEC §7) is ``servobot.colony_validate``, which
+A colony of R robots sharing the station (SPEC §7) is ``servobot.validation.colony``, which
 runs through this module's ``execute`` and ``run_both_worlds``.
 """
 
@@ -58,7 +58,7 @@ from infra.io import check_free_space
 from infra.rundir import run_folder
 from servo_mj.robot.model import ModelFile, ModelFileError, model_label, model_sha256
 from servo_mj.world.arena import ArenaSettings, default_robot, overlaps_station
-from servobot.validation_report import summarise, write_report
+from servobot.validation.report import summarise, write_report
 
 MODE = "coverage"
 """A full 16-gene controller is validated in coverage mode (SPEC §5)."""

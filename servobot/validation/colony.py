@@ -44,8 +44,8 @@ from evolve.world import TableColony
 from infra.executors import Executor, make_executor
 from servo_mj.robot.model import ModelFile
 from servo_mj.world.arena import ArenaSettings, default_robot
-from servobot.colony_report import summarise_colony, write_colony_report
-from servobot.validate import (
+from servobot.validation.colony_report import summarise_colony, write_colony_report
+from servobot.validation.lone import (
     MODE,
     ValidationError,
     check_chromosome,
@@ -215,7 +215,7 @@ def validate_colony(
     """Run ``bits`` (16, 30) on a colony from every colony start ((N, R, 3): x, y cm; h deg)
     in the table world and in physics. ``colony`` defaults to ``ColonySettings(robots=R)``;
     ``max_steps`` bounds each robot's own gait steps (default 600). Everything else as
-    ``servobot.validate.validate``, whose run folder, executors and errors it shares."""
+    ``servobot.validation.lone.validate``, whose run folder, executors and errors it shares."""
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
     arr = check_chromosome(bits)

@@ -2,7 +2,7 @@
 
 For each start, interleaved ``--repeats`` times, in this process:
 
-- **validation**: ``servobot.validate.run_start`` without recording (table run, then the
+- **validation**: ``servobot.validation.lone.run_start`` without recording (table run, then the
   physics run through the interpreter, its sensors and the per-event record keeping), time
   per physics step;
 - **validation, sensors every step**: the same with MuJoCo's sensor stage on at every physics
@@ -19,7 +19,7 @@ testing object and light sensors, with enough power that every run lasts ``--ste
 ``--chromosome FILE`` runs a 16-gene chromosome from seeded coverage starts instead (runs
 end as the controller makes them).
 
-Run: ``python -m servobot.validation_bench [--starts 2] [--steps 150] [--repeats 2]
+Run: ``python -m servobot.validation.bench [--starts 2] [--steps 150] [--repeats 2]
 [--chromosome FILE] [--seed 0]``.
 """
 
@@ -46,7 +46,7 @@ from servo_mj.robot.model import load_robot
 from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings
 from servo_mj.world.physics_world import PhysicsWorld, colony
-from servobot.validate import StartJob, run_start
+from servobot.validation.lone import StartJob, run_start
 
 ARENA_CENTRE_START = (250.0, 250.0)
 """Where the default circling controller starts (x, y cm), clear of walls and station."""
@@ -122,7 +122,7 @@ def time_bare(gaits: list[int], seed: tuple[int, int]) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m servobot.validation_bench")
+    p = argparse.ArgumentParser(prog="python -m servobot.validation.bench")
     p.add_argument("--starts", type=int, default=2, help="start poses (2)")
     p.add_argument("--steps", type=int, default=150, help="step limit per run (150)")
     p.add_argument("--repeats", type=int, default=2, help="interleaved repeats (2)")

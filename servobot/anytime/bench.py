@@ -1,11 +1,11 @@
 """Does anytime learning pay in physics? Table-only, ``bias`` and ``model`` on the same seeds.
 
-``python -m servobot.anytime_bench --navigation FILE --out runs/anytime_bench --seeds 0 1
+``python -m servobot.anytime.bench --navigation FILE --out runs/anytime_bench --seeds 0 1
 [--table paper|PATH] [--populations 3] [--generations 128] [--population-size 128]
 [--every 32] [--top 2] [--physics-starts 2] [--physics-steps 600] [--final-starts 20]
 [--methods none bias model] [--executor process] [--workers N] [--resume]``
 
-For each seed it runs ``servobot.anytime.run_anytime`` once per method into
+For each seed it runs ``servobot.anytime.run.run_anytime`` once per method into
 ``OUT/seed{s}/{method}`` (``none`` first: it is the others' baseline; the control measures
 the same punctuations without feeding them back, so its ``table_wall_s`` is the table-only
 run's wall time). Then, per method over all seeds: the finalists' inner coverage in physics
@@ -34,9 +34,9 @@ from evolve.settings import GASettings
 from evolve.stages import navigation_section
 from infra.executors import EXECUTOR_SPECS, check_spec, make_executor
 from infra.io import atomic_write_json, atomic_write_text, read_json
-from servobot.anytime import run_anytime
-from servobot.anytime_report import label, mean_of
-from servobot.validate import load_checked_table
+from servobot.anytime.run import run_anytime
+from servobot.anytime.report import label, mean_of
+from servobot.validation.lone import load_checked_table
 
 GOAL_PP = 3.0
 """The issue's goal: anytime finalists ≥ this many pp more inner coverage in physics…"""
@@ -45,7 +45,7 @@ GOAL_WALL = 1.30
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="python -m servobot.anytime_bench", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m servobot.anytime.bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     p.add_argument("--navigation", type=Path, required=True, help="navigation section file")
     p.add_argument("--out", type=Path, default=Path("runs/anytime_bench"))

@@ -6,7 +6,7 @@ Coverage learning (SPEC §5, the navigation section fixed) runs on the table wor
 walk in physics from M seeded coverage starts (``measure_run``: the validation's physics world
 and servo noise, every gait cycle logged, ``calibration.residuals``), and the results bias
 the fitness or correct the gait table. At the end each population's best runs in both worlds
-from ``final_starts`` fresh starts (``servobot.validate.validate``). Every batch of physics
+from ``final_starts`` fresh starts (``servobot.validation.lone.validate``). Every batch of physics
 runs goes to one executor (``infra.executors``); the results do not depend on which.
 
 Layout of ``out/anytime`` (a run folder: lock, ``settings.json``, ``--resume``, ``--force``)::
@@ -65,8 +65,8 @@ from infra.rundir import run_folder
 from servo_mj.robot.model import ModelFile, model_label, model_sha256
 from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings, station_distance_cm
-from servobot import anytime_report as report
-from servobot.validate import MODE, StartJob, jsonable, physics_world, validate, validation_need
+from servobot.anytime import report
+from servobot.validation.lone import MODE, StartJob, jsonable, physics_world, validate, validation_need
 
 ANYTIME_FILES = (
     *STAGE_FILES, "punctuations/gen*.json", "tables/gen*.json", "final/pop*.json",
@@ -194,7 +194,7 @@ def run_anytime(
     """Anytime learning into ``out/anytime`` (module docstring); returns the summary.
 
     ``table``: the GA's base model (check it against ``model`` first:
-    ``servobot.validate.load_checked_table``); ``physics`` (default ``PhysicsSettings()``,
+    ``servobot.validation.lone.load_checked_table``); ``physics`` (default ``PhysicsSettings()``,
     servo noise as in validation), ``arena``, ``model``: the physics robot. ``executor``
     (default a process pool of one worker per core) runs every batch of physics runs.
     ``baseline``: a ``method none`` run of the same seed, drawn beside this one in the figure.

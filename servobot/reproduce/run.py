@@ -54,8 +54,8 @@ from infra.executors import Executor, make_executor
 from infra.io import atomic_write_json, check_free_space, read_json
 from infra.rundir import RECORD_FILE, run_folder
 from servobot.recording import Recording, calibration_recorder, log_calibration_result
-from servobot.reproduce_report import write_report
-from servobot.reproduce_settings import (
+from servobot.reproduce.report import write_report
+from servobot.reproduce.settings import (
     STAGES,
     ReproduceError,
     ReproduceSettings,
@@ -63,7 +63,7 @@ from servobot.reproduce_settings import (
     quick_settings,
     stage_key,
 )
-from servobot.validate import (
+from servobot.validation.lone import (
     VALIDATION_FILES,
     ValidationError,
     clear_navigation_starts,
