@@ -50,17 +50,22 @@ class GenerationBars:
 
 class RunBar:
     """An ``on_run()`` callback: one tqdm bar counting finished runs, on stderr, opened at the
-    first run (a command refused before any run prints no bar)."""
+    first run (a command refused before any run prints no bar). ``total``: the runs expected,
+    if known; ``advance(n)`` counts ``n`` runs at once (runs read back on resume)."""
 
-    def __init__(self, desc: str, enabled: bool = True) -> None:
-        self.desc, self.enabled = desc, enabled
+    def __init__(self, desc: str, enabled: bool = True, total: int | None = None) -> None:
+        self.desc, self.enabled, self.total = desc, enabled, total
         self._bar: Any = None
 
     def __call__(self, *_: Any) -> None:
+        self.advance(1)
+
+    def advance(self, n: int) -> None:
+        """Count ``n`` finished runs."""
         if self._bar is None:
-            self._bar = tqdm(desc=self.desc, unit="run", disable=not self.enabled,
-                             file=sys.stderr)  # fmt: skip
-        self._bar.update(1)
+            self._bar = tqdm(desc=self.desc, unit="run", total=self.total,
+                             disable=not self.enabled, file=sys.stderr)  # fmt: skip
+        self._bar.update(n)
 
     def close(self) -> None:
         """Close the bar if it was opened."""

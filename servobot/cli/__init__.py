@@ -15,6 +15,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "anytime": ("servobot.cli.anytime", "coverage learning corrected by physics punctuations"),
     "trace": ("servobot.cli.trace", "print (and record) a controller's run step by step"),
     "validate": ("servobot.cli.validate", "run a chromosome in the table simulation and physics"),
+    "robustness": ("servobot.cli.robustness", "run chromosomes in named physics worlds (a matrix)"),
     "reproduce": ("servobot.cli.reproduce", "the end-to-end reproduction into one run folder"),
     "variant": ("servobot.cli.variant", "write a ServoBot variant (mass, legs, servos, friction)"),
     "compare": ("servobot.cli.compare", "compare gait tables side by side (PNG + CSV)"),
