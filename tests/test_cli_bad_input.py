@@ -214,6 +214,20 @@ CASES = {
             "start 0, robot 1: start (10, 300) lies in the kill zone",
         ),  # fmt: skip
     ],
+    "robustness": [
+        (["{dir}"], "a_folder: is a folder, not a chromosome file"),
+        (["{binary}"], "binary.bin: holds binary data"),
+        (["{chrom16}", "--worlds", "shipped,moon"], "'moon' is neither a built-in world"),
+        (["{chrom16}", "--worlds", "{dir}"], "a_folder' is neither a built-in world"),
+        (["{chrom16}", "--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
+        (["{chrom16}", "--starts", "1000000000"], "--starts 1000000000"),
+        (["{chrom16}", "--steps", "1000000000000"], "--steps 1000000000000"),
+        (["{chrom16}", "--workers", "1000000"], "--workers must be an integer between 1"),
+        (["{chrom16}", "--executor", "cloud"], "executor must be serial"),
+        (["{chrom16}", "--table", "{inf_table}"], "non-finite number Infinity"),
+        (["{chrom16}", "--out", "{chrom16}"], "is a file, not a folder"),
+        (["{chrom16}", "--out", "/proc/servobot-x"], "cannot write there"),
+    ],
     "calibrate": [
         (["--params", "{dir}"], "a_folder: is a folder, not a gait-parameter file"),
         (["--params", "{binary}"], "binary.bin: holds binary data"),
