@@ -17,8 +17,8 @@ from evolve.settings import ColonySettings, WorldSettings
 from evolve.starts import colony_starts
 from evolve.table import PAPER_TABLE
 from servobot.cli import validate as validate_cli
-from servobot.validation.colony import validate_colony
 from servobot.recording.colony import robot_color
+from servobot.validation.colony import validate_colony
 from servobot.validation.lone import ValidationError, validate
 from tests.test_physics_colony import DOCKER, TOLERANCE_CM
 from tests.test_recording import Rrd

@@ -19,9 +19,9 @@ from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE
 from infra.io import OutputError
 from servo_mj.world import physics_world
-from servobot.validation import lone as validation
 from servobot.cli import main as servobot
 from servobot.recording import Recording
+from servobot.validation import lone as validation
 
 ROOT = Path(__file__).resolve().parents[1]
 GENE = "01 0100000 0100000 0100000 0100000\n"

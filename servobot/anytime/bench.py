@@ -34,8 +34,8 @@ from evolve.settings import GASettings
 from evolve.stages import navigation_section
 from infra.executors import EXECUTOR_SPECS, check_spec, make_executor
 from infra.io import atomic_write_json, atomic_write_text, read_json
-from servobot.anytime.run import run_anytime
 from servobot.anytime.report import label, mean_of
+from servobot.anytime.run import run_anytime
 from servobot.validation.lone import load_checked_table
 
 GOAL_PP = 3.0

@@ -66,7 +66,14 @@ from servo_mj.robot.model import ModelFile, model_label, model_sha256
 from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings, station_distance_cm
 from servobot.anytime import report
-from servobot.validation.lone import MODE, StartJob, jsonable, physics_world, validate, validation_need
+from servobot.validation.lone import (
+    MODE,
+    StartJob,
+    jsonable,
+    physics_world,
+    validate,
+    validation_need,
+)
 
 ANYTIME_FILES = (
     *STAGE_FILES, "punctuations/gen*.json", "tables/gen*.json", "final/pop*.json",

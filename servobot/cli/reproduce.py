@@ -18,8 +18,8 @@ from infra.bounds import check_int
 from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.cli.runner import Interrupted, command_line, run_command
 from servobot.progress import GenerationBars
-from servobot.reproduce.run import reproduce, resolve_settings
 from servobot.reproduce.report import format_seconds
+from servobot.reproduce.run import reproduce, resolve_settings
 
 PROG = "servobot reproduce"
 

@@ -38,8 +38,8 @@ from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings
 from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.cli.runner import EXIT_FAILED, Interrupted, command_line, run_command
-from servobot.validation.colony_report import colony_run_rows, colony_summary_lines
 from servobot.validation.colony import check_colony_starts, validate_colony
+from servobot.validation.colony_report import colony_run_rows, colony_summary_lines
 from servobot.validation.lone import (
     ValidationError,
     check_chromosome,
