@@ -6,8 +6,9 @@ Geometry (motion, sensors, squares, kill zone, docking, other robots' discs) is 
 the kernels compile the very functions of ``evolve.geometry`` (``register_jitable``), so every
 float formula is the interpreter's, operation for operation, and ``fastmath`` stays off. Only
 the control flow is copied here. Both kernels take a gait cycle with its checks in ``_walk``;
-a colony robot's object sensors (walls and discs) are ``_object_sense``; the colony moves its
-program counter with ``_next_pc`` (``run_one`` spells that rule out, measured 3 % faster).
+object sensors (walls, other robots' discs, an envelope's station block) are
+``_object_sense``; the colony moves its program counter with ``_next_pc`` (``run_one`` spells
+that rule out, measured 3 % faster).
 ``tests/test_kernel.py`` and ``tests/test_colony_kernel.py`` prove the kernels equal to the
 interpreter on random, hand-worked and evolved chromosomes.
 
@@ -22,6 +23,14 @@ preallocated arrays (``S_*`` columns) and runs its turns in one loop: numba's in
 re-references every array argument of an inlined helper (an atomic increment and decrement
 each), so helpers that take the state arrays sit only on the rare paths (charging,
 docking). Per robot step the colony runs at about 0.9 of the lone kernel's rate.
+
+An envelope of variation (SPEC §9) reaches the kernels as arrays made once per batch in
+Python (``evolve.variation.KernelDraws``: each run's gait table with its bias, its reach, its
+station block, its scatter key) and as one jitable function, ``scattered_row``, that draws a
+cycle's scatter from the robot's key and its cycle count (its ``steps``); the interpreter's
+table worlds call the same. The envelope ``none`` costs a branch per cycle (scatter scale 0,
+no block) and reads the table's own rows: its results are the pre-envelope ones, bit for bit
+(``tests/test_envelope.py`` against stored results).
 
 Constants and the branch and next-gene rules come from ``evolve.codec`` and the end codes
 from ``evolve.interpreter``: the kernel types none of them again.
