@@ -32,6 +32,11 @@ Physics stays outside this module (``evolve`` imports no MuJoCo): the caller pas
 ``punctuations/gen{g:04d}.json``; what a generation needs (biases, the corrected table) is a
 function of these records, so a resumed run, its populations back at their checkpoints,
 replays to the same numbers bit for bit without running physics again.
+
+A stage evolved in an envelope of variation (SPEC §9, ``Stage.envelope``) evaluates its
+generations in it (key (seed, g)), a ``model`` re-evaluation of generation g too, and a
+punctuation's table-world runs with the key ``key_of_test(seed, "punctuation", g)``: the
+bias compares physics with the fitness the GA sees.
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from evolve.codec import format_chromosome, parse_chromosome
+from evolve.envelope import key_of_test
 from evolve.population import (
     Generation,
     OnGeneration,
@@ -271,7 +277,8 @@ def model_table(
     if settings.method != "model" or not any(g <= upto for g in records):
         return base
     values = corrected_table(base.values, *pooled_residuals(records, upto), settings.min_samples)
-    return GaitTable(values, meta=base.meta, source=f"{base.source}, corrected to gen {upto}")
+    source = f"{base.source}, corrected to gen {upto}"
+    return GaitTable(values, base.std, meta=base.meta, source=source)  # σ: the base table's
 
 
 def population_bias(records: dict[int, dict[str, Any]], k: int, upto: int) -> Bias:
@@ -323,7 +330,8 @@ def _measure(
     by_k = {r.k: r for r in runs}
     sections = np.stack([by_k[k].pop[i] for k, _, i in chosen])
     short = dataclasses.replace(stage, max_steps=settings.physics_steps)
-    table_squares = evaluate_sections(sections, starts, short, in_use, world)[0]
+    key = key_of_test(ga.seed, "punctuation", g)
+    table_squares = evaluate_sections(sections, starts, short, in_use, world, key)[0]
     t0 = time.perf_counter()
     measured = test_in_physics(stage.genomes(sections), starts, seed, base.values)
     wall = time.perf_counter() - t0
@@ -482,7 +490,7 @@ def evolve_anytime(
                 )  # fmt: skip
                 records[g] = _save(folder, rec, table, records | {g: rec}, settings, table_meta)
                 physics_s += rec["physics_wall_s"]
-            fitness = _after(active, evaluated, records, g, stage, table, world, settings)
+            fitness = _after(active, evaluated, records, g, stage, table, world, settings, ga.seed)
             if on_punctuation is not None:
                 on_punctuation(records[g])
         for r in active:
@@ -516,17 +524,19 @@ def _in_force(
 def _after(
     active: list[PopulationRun], evaluated: dict[int, Generation],
     records: dict[int, dict[str, Any]], g: int, stage: Stage, base: GaitTable,
-    world: WorldSettings, settings: AnytimeSettings,
+    world: WorldSettings, settings: AnytimeSettings, seed: int,
 ) -> dict[int, np.ndarray]:  # fmt: skip
     """The fitness in force once punctuation ``g`` applies: the new bias, or the generation
-    re-evaluated on the corrected table (from the same starts)."""
+    re-evaluated on the corrected table (from the same starts, with the same envelope draws:
+    key (seed, g))."""
     if settings.method != "model":
         return _in_force(active, evaluated, records, g, settings)
     table = model_table(base, records, g, settings)
-    return {
-        r.k: evaluate_sections(r.pop, evaluated[r.k].starts, stage, table, world)[0].mean(axis=1)
-        for r in active
-    }
+    out = {}
+    for r in active:
+        fit = evaluate_sections(r.pop, evaluated[r.k].starts, stage, table, world, (seed, g))[0]
+        out[r.k] = fit.mean(axis=1)
+    return out
 
 
 def _save(

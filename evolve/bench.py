@@ -9,7 +9,9 @@ Populations:
 
 Each population runs alone (one robot per run) and as colonies of ``--robots`` robots from
 colony starts in the same regions (``evolve.starts.colony_starts``); the colony lines give
-robot steps per second and their ratio to the lone robot's, measured in alternation.
+robot steps per second and their ratio to the lone robot's, measured in alternation. Each
+load runs in the world of §3 (envelope ``none``) and, on an ``envelope default`` line, in the
+envelope ``DEFAULT`` (SPEC §9), with its rates' ratio to ``none``'s.
 
 Run: ``python -m evolve.bench [--threads 1 2] [--population 256] [--starts 10] [--repeats 5]
 [--robots 3] [--clock wall|cpu]``; ``--clock cpu`` divides by the process's CPU time, which a
@@ -25,6 +27,7 @@ import time
 import numba
 import numpy as np
 
+from evolve.envelope import DEFAULT, NONE, Envelope
 from evolve.evaluation import evaluate, evaluate_colony
 from evolve.ga import random_sections
 from evolve.settings import ColonySettings, WorldSettings
@@ -69,21 +72,19 @@ CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
 
 def _measure(
-    genomes, starts, *, start_power: float, repeats: int, colony=None, clock=time.perf_counter
-) -> float:
-    """Best-of-``repeats`` robot steps per second, alone (``colony`` None) or as colonies."""
+    genomes, starts, *, start_power: float, repeats: int, colony=None, clock=time.perf_counter,
+    envelope: Envelope = NONE,
+) -> float:  # fmt: skip
+    """Best-of-``repeats`` robot steps per second, alone (``colony`` None) or as colonies, in
+    ``envelope``."""
     best = 0.0
+    kw = dict(table=PAPER_TABLE, mode="coverage", start_power=start_power, envelope=envelope)
     for _ in range(repeats):
         t0 = clock()
         if colony is None:
-            ev = evaluate(
-                genomes, starts, table=PAPER_TABLE, mode="coverage", start_power=start_power
-            )
+            ev = evaluate(genomes, starts, **kw)
         else:
-            ev = evaluate_colony(
-                genomes, starts, table=PAPER_TABLE, mode="coverage", start_power=start_power,
-                colony=colony,
-            )  # fmt: skip
+            ev = evaluate_colony(genomes, starts, colony=colony, **kw)
         dt = clock() - t0
         best = max(best, float(ev.steps.sum()) / dt)
     return best
@@ -119,8 +120,10 @@ def main(argv: list[str] | None = None) -> int:
     colony = ColonySettings(robots=args.robots)
     loads = _loads(rng, args.population, args.starts, colony)
     _, g, lone, col, _ = loads[0]
-    evaluate(g[:2], lone[:1], table=PAPER_TABLE, mode="coverage")  # compile / load
-    evaluate_colony(g[:2], col[:1], table=PAPER_TABLE, mode="coverage", colony=colony)
+    for env in (NONE, DEFAULT):  # compile / load
+        evaluate(g[:2], lone[:1], table=PAPER_TABLE, mode="coverage", envelope=env)
+        evaluate_colony(g[:2], col[:1], table=PAPER_TABLE, mode="coverage", colony=colony,
+                        envelope=env)  # fmt: skip
     print(f"numba {numba.__version__}, threading layer after first call: {numba.threading_layer()}")
     print(
         f"population {args.population} x {args.starts} starts, colonies of {args.robots}, best "
@@ -129,14 +132,22 @@ def main(argv: list[str] | None = None) -> int:
     for threads in args.threads:
         numba.set_num_threads(threads)
         for name, genomes, lone, col, power in loads:
-            a = b = 0.0
-            for _ in range(args.repeats):  # alternate, so that both see the same load
-                a = max(a, _measure(genomes, lone, start_power=power, repeats=1, clock=clock))
-                b = max(b, _measure(genomes, col, start_power=power, repeats=1, colony=colony,
-                                    clock=clock))  # fmt: skip
+            rates = {}
+            for _ in range(args.repeats):  # alternate, so that all see the same load
+                for env in (NONE, DEFAULT):
+                    for kind, starts, c in (("lone", lone, None), ("colony", col, colony)):
+                        r = _measure(genomes, starts, start_power=power, repeats=1, colony=c,
+                                     clock=clock, envelope=env)  # fmt: skip
+                        rates[env, kind] = max(rates.get((env, kind), 0.0), r)
+            a, b = rates[NONE, "lone"], rates[NONE, "colony"]
             print(
                 f"threads {threads}: {name:6s} lone {a / 1e6:6.2f} M steps/s | colony of "
                 f"{args.robots} {b / 1e6:6.2f} M robot steps/s | ratio {b / a:.2f}"
+            )
+            da, db = rates[DEFAULT, "lone"], rates[DEFAULT, "colony"]
+            print(
+                f"  envelope default: lone {da / 1e6:6.2f} M steps/s ({da / a:.2f} of none) | "
+                f"colony {db / 1e6:6.2f} M robot steps/s ({db / b:.2f} of none)"
             )
     return 0
 

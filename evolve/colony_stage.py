@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from evolve.codec import write_chromosome
+from evolve.envelope import NONE, Envelope
 from evolve.interpreter import END_NAMES
 from evolve.population import OnGeneration, Stage, StageError, save_generations
 from evolve.settings import ColonySettings, GASettings, WorldSettings
@@ -35,7 +36,9 @@ from evolve.stages import (
     _stage_folder,
     _write_figure9,
     coverage_run_fitness,
-    figure9_test,
+    envelope_figure9,
+    figure9_both,
+    figure9_summary,
 )
 from evolve.starts import colony_starts
 from evolve.table import GaitTable
@@ -56,8 +59,11 @@ def _evaluate_colony(genomes: np.ndarray, starts: np.ndarray, **kw: Any) -> Any:
     return evaluate_colony(genomes, starts, **kw)
 
 
-def colony_stage(world: WorldSettings, colony: ColonySettings, navigation: np.ndarray) -> Stage:
-    """The colony's ``Stage``: coverage mode, colony starts, colony squares as run fitness."""
+def colony_stage(
+    world: WorldSettings, colony: ColonySettings, navigation: np.ndarray, envelope: Envelope = NONE
+) -> Stage:
+    """The colony's ``Stage``: coverage mode, colony starts, colony squares as run fitness, in
+    ``envelope``."""
     nav = _check_navigation(navigation)
     try:
         colony_starts(np.random.default_rng(0), 1, world, colony)
@@ -72,6 +78,7 @@ def colony_stage(world: WorldSettings, colony: ColonySettings, navigation: np.nd
         nav,
         evaluate=functools.partial(_evaluate_colony, colony=colony),
         extra_settings=(colony,),
+        envelope=envelope,
     )
 
 
@@ -92,6 +99,7 @@ def run_colony_stage(
     force: bool = False,
     on_generation: OnGeneration | None = None,
     executor: Executor | None = None,
+    envelope: Envelope = NONE,
 ) -> dict[str, Any]:
     """Colony stage (SPEC §7) into ``out/colony``; returns the summary (also
     ``summary.json``). ``executor``: where the populations evolve, and ``resume``/``force``
@@ -104,9 +112,13 @@ def run_colony_stage(
     ``robots``, ``final_test`` (per population: colony and per-robot coverage, docks, station
     waits, blocked moves, ends, and the same best measured alone) and
     ``one_robot_final_mean_inner_percent``.
+
+    ``envelope`` (SPEC §9): the populations evolve in it; Figure 9 is also measured in it on
+    the same colony test starts, as the coverage stage's (``envelope_figure9_*``,
+    ``envelope_final_*``, ``envelope``); ``final_test`` and Figure 10 stay in the world of §3.
     """
     folder = Path(out) / "colony"
-    stage = colony_stage(world, colony, navigation)
+    stage = colony_stage(world, colony, navigation, envelope)
     with _stage_folder(stage, folder, table, ga, world, resume, force) as doc:
         return _colony(stage, folder, doc, table, ga, world, colony, resume, on_generation,
                        executor)  # fmt: skip
@@ -125,8 +137,9 @@ def _colony(
         on_generation=on_generation, executor=executor,
     )  # fmt: skip
     gens = save_generations(ga)
-    inner, squares = figure9_test(folder, stage, table, world, gens, ga.populations, test_starts)
-    _write_figure9(folder, gens, inner, squares)
+    fig9 = figure9_both(folder, stage, table, world, gens, ga.populations, test_starts, ga.seed)
+    inner = fig9[""][0]
+    _write_figure9(folder, gens, fig9, stage.envelope)
     r = colony.robots
     figures.figure9(
         folder / "figure9.png", gens, inner,
@@ -149,16 +162,11 @@ def _colony(
             starts=start, title=f"population {k}",
         )  # fmt: skip
         fig10.append({"population": k, **fig})
-    mean = inner.mean(axis=0)
     summary = {
         "stage": "colony",
         "robots": r,
         "generations": list(gens),
-        "figure9_mean_inner_percent": mean.tolist(),
-        "figure9_inner_percent": inner.tolist(),
-        "final_mean_inner_percent": float(mean[-1]),
-        "final_inner_percent": inner[:, -1].tolist(),
-        "final_mean_squares": squares[:, -1].tolist(),
+        **figure9_summary(fig9[""]),
         "one_robot_final_mean_inner_percent": float(
             np.mean([p["one_robot_inner_percent"] for p in final])
         ),
@@ -169,7 +177,7 @@ def _colony(
         "wall_s": time.perf_counter() - t0,
         "resumed": bool(resume),
         "settings": doc,
-    }
+    } | envelope_figure9(stage, fig9)
     atomic_write_json(folder / "summary.json", summary)
     return summary
 

@@ -1,5 +1,6 @@
 """Public entry of the table simulation: ``evaluate`` a population on shared start poses, one
-robot per run, or ``evaluate_colony``: a colony of R robots per run (SPEC §7).
+robot per run, or ``evaluate_colony``: a colony of R robots per run (SPEC §7). Both run in an
+envelope of variation (SPEC §9, ``evolve.envelope``; ``none`` by default: the world of §3).
 
 Import them as ``from evolve import evaluate, evaluate_colony``.
 """
@@ -13,10 +14,12 @@ import numpy as np
 
 from evolve import kernel
 from evolve.codec import FULL_GENES, SECTION_GENES, check_bits, decode
+from evolve.envelope import NONE, ROBOT_RADIUS, Envelope
 from evolve.geometry import pack_world
 from evolve.interpreter import MODES
 from evolve.settings import ColonySettings, WorldSettings
 from evolve.table import validate_table
+from evolve.variation import KernelDraws, Variation
 
 DEFAULT_SETTINGS = WorldSettings()
 DEFAULT_COLONY = ColonySettings()
@@ -90,6 +93,16 @@ def _decoded(bits: np.ndarray) -> tuple[np.ndarray, ...]:
     return tuple(np.ascontiguousarray(a) for a in decode(bits))
 
 
+def _draws(
+    envelope: Envelope, table, settings: WorldSettings, key, radius: float, starts: int,
+    robots: int,
+) -> KernelDraws:  # fmt: skip
+    """The batch's per-run envelope draws (``evolve.variation``) for the kernels."""
+    if not isinstance(envelope, Envelope):
+        raise TypeError(f"envelope must be an evolve.envelope.Envelope, got {envelope!r}")
+    return Variation.of(envelope, table, settings, key, radius).kernel_draws(starts, robots)
+
+
 def evaluate(
     genomes: np.ndarray,
     starts: np.ndarray,
@@ -99,22 +112,30 @@ def evaluate(
     start_power: float = 4.0,
     max_steps: int | None = None,
     settings: WorldSettings = DEFAULT_SETTINGS,
+    envelope: Envelope = NONE,
+    envelope_key: tuple[int, ...] = (0, 0),
 ) -> Evaluation:
     """Run every individual of ``genomes`` from every start pose on the table simulation.
 
     ``genomes``: uint8 bits (P, G, 30), G = 16 for mode "coverage", 8 for "navigation".
     ``starts``: (S, 3) of x, y (arena units, inside the arena) and heading (deg).
-    ``table``: a (16, 3) array of (F cm, T cm, dH deg) or a ``GaitTable``.
+    ``table``: a (16, 3) array of (F cm, T cm, dH deg) or a ``GaitTable`` (whose ``std`` is
+    the envelope's σ; an array or the paper's table borrow the shipped robot's).
     ``max_steps`` defaults to ``settings.coverage_steps`` (600) or ``navigation_steps`` (100).
-    Equal to ``evolve.interpreter.run`` with a ``TableWorld``, run by run.
+    ``envelope`` varies the world (SPEC §9) with draws keyed by ``envelope_key`` (a stage's
+    seed and generation, or ``evolve.envelope.key_of_test``), the start's index s and robot
+    0: every individual meets the same draws at start s. ``envelope.NONE``: the world of §3.
+    Equal to ``evolve.interpreter.run`` with a ``TableWorld`` (same envelope, key and start
+    index), run by run.
     """
-    bits, values, max_steps = _check_inputs(genomes, table, mode, start_power, max_steps, settings)
+    bits, _, max_steps = _check_inputs(genomes, table, mode, start_power, max_steps, settings)
     start_arr = _check_starts(starts, settings)
     n_pop, n_start = bits.shape[0], start_arr.shape[0]
+    draws = _draws(envelope, table, settings, envelope_key, ROBOT_RADIUS, n_start, 1)
     out_int, out_pose = kernel.run_flat(
         *_decoded(bits),
         start_arr,
-        values,
+        draws,
         pack_world(settings),
         float(start_power),
         int(max_steps),
@@ -193,23 +214,28 @@ def evaluate_colony(
     max_steps: int | None = None,
     settings: WorldSettings = DEFAULT_SETTINGS,
     colony: ColonySettings = DEFAULT_COLONY,
+    envelope: Envelope = NONE,
+    envelope_key: tuple[int, ...] = (0, 0),
 ) -> ColonyEvaluation:
     """Run every individual of ``genomes`` as a colony from every colony start (SPEC §7).
 
     ``starts``: (S, R, 3), R = ``colony.robots`` poses per run (inside the arena, centres at
     least two disc radii apart). Every robot of a run carries the same chromosome and starts
     with ``start_power``; ``max_steps`` bounds each robot's gait steps (default as
-    ``evaluate``). Other arguments as ``evaluate``. Equal to ``evolve.interpreter.run_colony``
+    ``evaluate``). Other arguments as ``evaluate``; robot r of start s draws with (key, s, r),
+    the station block is the run's (robot 0's draw). Equal to ``evolve.interpreter.run_colony``
     with a ``TableColony``, run by run; with R = 1 equal to ``evaluate``.
     """
-    bits, values, max_steps = _check_inputs(genomes, table, mode, start_power, max_steps, settings)
+    bits, _, max_steps = _check_inputs(genomes, table, mode, start_power, max_steps, settings)
     start_arr = _check_colony_starts(starts, settings, colony)
+    n_start, n_robots = start_arr.shape[:2]
+    draws = _draws(envelope, table, settings, envelope_key, colony.disc_radius, n_start, n_robots)
     limit = -1 if colony.colony_step_limit is None else colony.colony_step_limit
     params = (colony.disc_radius, colony.min_distance, colony.charge_steps, limit)
     st, pose, out_run = kernel.run_colony_flat(
         *_decoded(bits),
         start_arr,
-        values,
+        draws,
         pack_world(settings),
         float(start_power),
         max_steps,

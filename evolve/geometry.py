@@ -5,12 +5,15 @@ in degrees in [0, 360), 0 = north (+y), 90 = east, clockwise positive. Bearings 
 the heading are in (−180, 180], negative = left.
 
 Two layers:
-- scalar kernels (``move``, ``object_bits``, ``disc_bits``, ``too_close``, ``light_bits``,
-  ``square_at``, ``killed``, ``docked``, ...) over a *packed* settings vector ``p``
-  (``pack_world``). They use only ``math`` and indexing, so the numba kernel compiles these
-  very functions: the interpreter and the kernel share every float formula, operation for
-  operation. Other robots of a colony (SPEC §7) are discs: ``disc_bits`` (object sensors) and
-  ``too_close`` (cancelled moves).
+- scalar kernels (``move``, ``object_bits``, ``disc_bits``, ``block_bits``, ``too_close``,
+  ``block_stops``, ``light_bits``, ``square_at``, ``killed``, ``docked``, ...) over a *packed*
+  settings vector ``p`` (``pack_world``). They use only ``math`` and indexing, so the numba
+  kernel compiles these very functions: the interpreter and the kernel share every float
+  formula, operation for operation. Other robots of a colony (SPEC §7) are discs:
+  ``disc_bits`` (object sensors) and ``too_close`` (cancelled moves). An envelope's station
+  (SPEC §9) is a box: ``block_bits`` (object sensors) and ``block_stops`` (cancelled moves).
+  ``wall_bits`` and ``disc_bits_within`` take the activation distance as an argument (an
+  envelope draws it per run).
 - public wrappers over ``WorldSettings`` (``apply_gait``, ``light_sensors``, ...).
 
 Square index: square (i, j) with i the column (x) and j the row (y) has index i + grid_n·j.
@@ -212,8 +215,15 @@ def _disc_reaches(rel, a, b, dist, radius, reach):
 
 @register_jitable
 def object_bits(x, y, h, p):
-    """Active object-sensor bits (OBJECT_LEFT | OBJECT_RIGHT) at pose (x, y, h), walls only."""
-    reach = p[P_OBJ_RANGE]
+    """Active object-sensor bits (OBJECT_LEFT | OBJECT_RIGHT) at pose (x, y, h), walls only,
+    within the world's activation distance P_OBJ_RANGE."""
+    return wall_bits(x, y, h, p[P_OBJ_RANGE], p)
+
+
+@register_jitable
+def wall_bits(x, y, h, reach, p):
+    """Object-sensor bits that the walls activate at pose (x, y, h) within ``reach`` units (an
+    envelope's per-run activation distance, SPEC §9; else P_OBJ_RANGE)."""
     size = p[P_ARENA]
     bits = 0
     for wall in range(4):
@@ -244,7 +254,12 @@ def disc_bits(x, y, h, ox, oy, radius, p):
     """Object-sensor bits (OBJECT_LEFT | OBJECT_RIGHT) that another robot, a disc of
     ``radius`` centred at (ox, oy), activates at pose (x, y, h) (SPEC §7): a span is active if
     some point of the disc lies within P_OBJ_RANGE along a direction in the span."""
-    reach = p[P_OBJ_RANGE]
+    return disc_bits_within(x, y, h, ox, oy, radius, p[P_OBJ_RANGE], p)
+
+
+@register_jitable
+def disc_bits_within(x, y, h, ox, oy, radius, reach, p):
+    """``disc_bits`` with the activation distance ``reach`` (units)."""
     dx = ox - x
     dy = oy - y
     d2 = dx * dx + dy * dy
@@ -261,6 +276,107 @@ def disc_bits(x, y, h, ox, oy, radius, p):
     if _disc_reaches(rel, p[P_OR_A], p[P_OR_B], d, radius, reach):
         bits |= OBJECT_RIGHT
     return bits
+
+
+@register_jitable
+def box_distance2(x, y, x0, y0, x1, y1):
+    """Squared distance from (x, y) to the axis-aligned box [x0, x1] × [y0, y1] (0 inside)."""
+    dx = max(x0 - x, 0.0, x - x1)
+    dy = max(y0 - y, 0.0, y - y1)
+    return dx * dx + dy * dy
+
+
+@register_jitable
+def _ray_box_entry(x, y, bearing, x0, y0, x1, y1):
+    """Distance along the ray from (x, y) at ``bearing`` (deg) to where it enters the box
+    [x0, x1] × [y0, y1] (0 when it starts inside), +inf when it misses (slab method)."""
+    r = bearing * DEG2RAD
+    dirs = (math.sin(r), math.cos(r))
+    starts = (x, y)
+    lows = (x0, y0)
+    highs = (x1, y1)
+    lo = 0.0
+    hi = math.inf
+    for k in range(2):
+        d = dirs[k]
+        if d == 0.0:
+            if starts[k] < lows[k] or starts[k] > highs[k]:
+                return math.inf
+            continue
+        ta = (lows[k] - starts[k]) / d
+        tb = (highs[k] - starts[k]) / d
+        if ta > tb:
+            ta, tb = tb, ta
+        lo = max(lo, ta)
+        hi = min(hi, tb)
+    if lo > hi:
+        return math.inf
+    return lo
+
+
+@register_jitable
+def _point_in_view(x, y, h, a, b, qx, qy, reach):
+    """Whether the point (qx, qy) lies within ``reach`` of (x, y) along a direction of the span
+    [a, b] of relative bearings (heading ``h``)."""
+    dx = qx - x
+    dy = qy - y
+    if dx * dx + dy * dy > reach * reach:
+        return False
+    rel = wrap180(math.atan2(dx, dy) * RAD2DEG - h)
+    return _span_offset(rel, a, b) == 0.0
+
+
+@register_jitable
+def _box_in_span(x, y, h, a, b, x0, y0, x1, y1, reach):
+    """Whether some point of the box [x0, x1] × [y0, y1] (not holding (x, y)) lies within
+    ``reach`` along a direction of span [a, b] (narrower than 180°).
+
+    The nearest such point is a vertex of the box cut by the span's cone, or the foot of the
+    perpendicular on one of its edges: a corner of the box in view, the foot on a box edge in
+    view, or where one of the span's two edge rays enters the box."""
+    for edge in (a, b):
+        if _ray_box_entry(x, y, wrap360(h + edge), x0, y0, x1, y1) <= reach:
+            return True
+    for qx in (x0, x1):
+        for qy in (y0, y1):
+            if _point_in_view(x, y, h, a, b, qx, qy, reach):
+                return True
+    if y0 <= y <= y1:
+        for qx in (x0, x1):
+            if _point_in_view(x, y, h, a, b, qx, y, reach):
+                return True
+    if x0 <= x <= x1:
+        for qy in (y0, y1):
+            if _point_in_view(x, y, h, a, b, x, qy, reach):
+                return True
+    return False
+
+
+@register_jitable
+def block_bits(x, y, h, x0, y0, x1, y1, reach, p):
+    """Object-sensor bits that a block, the axis-aligned box [x0, x1] × [y0, y1] (an
+    envelope's station, SPEC §9), activates at pose (x, y, h): as ``disc_bits``, a span is
+    active if some point of the block lies within ``reach`` along a direction in the span."""
+    d2 = box_distance2(x, y, x0, y0, x1, y1)
+    if d2 == 0.0:  # the centre touches the block
+        return OBJECT_LEFT | OBJECT_RIGHT
+    if d2 > reach * reach:
+        return 0
+    bits = 0
+    if _box_in_span(x, y, h, p[P_OL_A], p[P_OL_B], x0, y0, x1, y1, reach):
+        bits |= OBJECT_LEFT
+    if _box_in_span(x, y, h, p[P_OR_A], p[P_OR_B], x0, y0, x1, y1, reach):
+        bits |= OBJECT_RIGHT
+    return bits
+
+
+@register_jitable
+def block_stops(x, y, nx, ny, x0, y0, x1, y1, radius):
+    """Whether a move from centre (x, y) to (nx, ny) is cancelled by the block [x0, x1] ×
+    [y0, y1] grown by ``radius``: the new centre lies closer than ``radius`` to the block and
+    closer than the old one (a robot placed overlapping it may back out, never go deeper)."""
+    d2 = box_distance2(nx, ny, x0, y0, x1, y1)
+    return d2 < radius * radius and d2 < box_distance2(x, y, x0, y0, x1, y1)
 
 
 @register_jitable
@@ -398,7 +514,11 @@ def lit(x: float, y: float, world: WorldSettings = DEFAULT_WORLD) -> tuple[bool,
 
 __all__ = [
     "apply_gait",
+    "block_bits",
+    "block_stops",
+    "box_distance2",
     "disc_bits",
+    "disc_bits_within",
     "docked",
     "in_kill_zone",
     "is_docked",
@@ -416,6 +536,7 @@ __all__ = [
     "square_index",
     "square_is_inner",
     "too_close",
+    "wall_bits",
     "wrap180",
     "wrap360",
 ]

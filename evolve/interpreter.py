@@ -124,7 +124,8 @@ class RunResult:
     track: np.ndarray
     """(steps + 1, 3) poses: the start, then the pose after each step."""
     collisions: int = 0
-    """Steps whose move another robot blocked (colony runs; 0 for one robot)."""
+    """Steps whose move was cancelled: another robot blocked it (colony runs), or an
+    envelope's station block that stops motion (SPEC §9); else 0."""
     station_waits: int = 0
     """Steps after which the docking rule held while another robot was charging (colony)."""
 
@@ -206,7 +207,8 @@ class _Run:
     # -- one gait cycle and the post-step checks ------------------------------------------
     def step(self, gait: int, gene: int, instr: int, mode: str) -> int | None:
         """Walk one cycle; kill zone → power empty → mark square. Returns an end code or None.
-        A move that another robot blocked keeps the pose and still counts and costs."""
+        A move that the world cancelled (another robot, a station block) keeps the pose and
+        still counts and costs."""
         blocked = bool(self.world.step(gait))
         x, y, h = self.world.pose()
         self.power = self.power - self.p[geo.P_GAIT_COST + gait]

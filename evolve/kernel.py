@@ -6,8 +6,9 @@ Geometry (motion, sensors, squares, kill zone, docking, other robots' discs) is 
 the kernels compile the very functions of ``evolve.geometry`` (``register_jitable``), so every
 float formula is the interpreter's, operation for operation, and ``fastmath`` stays off. Only
 the control flow is copied here. Both kernels take a gait cycle with its checks in ``_walk``;
-a colony robot's object sensors (walls and discs) are ``_object_sense``; the colony moves its
-program counter with ``_next_pc`` (``run_one`` spells that rule out, measured 3 % faster).
+object sensors (walls, other robots' discs, an envelope's station block) are
+``_object_sense``; the colony moves its program counter with ``_next_pc`` (``run_one`` spells
+that rule out, measured 3 % faster).
 ``tests/test_kernel.py`` and ``tests/test_colony_kernel.py`` prove the kernels equal to the
 interpreter on random, hand-worked and evolved chromosomes.
 
@@ -22,6 +23,14 @@ preallocated arrays (``S_*`` columns) and runs its turns in one loop: numba's in
 re-references every array argument of an inlined helper (an atomic increment and decrement
 each), so helpers that take the state arrays sit only on the rare paths (charging,
 docking). Per robot step the colony runs at about 0.9 of the lone kernel's rate.
+
+An envelope of variation (SPEC §9) reaches the kernels as arrays made once per batch in
+Python (``evolve.variation.KernelDraws``: each run's gait table with its bias, its reach, its
+station block, its scatter key) and as one jitable function, ``scattered_row``, that draws a
+cycle's scatter from the robot's key and its cycle count (its ``steps``); the interpreter's
+table worlds call the same. The envelope ``none`` costs a branch per cycle (scatter scale 0,
+no block) and reads the table's own rows: its results are the pre-envelope ones, bit for bit
+(``tests/test_envelope.py`` against stored results).
 
 Constants and the branch and next-gene rules come from ``evolve.codec`` and the end codes
 from ``evolve.interpreter``: the kernel types none of them again.
@@ -59,15 +68,17 @@ from evolve.geometry import (
     P_GRID_N,
     P_LOW,
     P_MAX_BRANCH,
-    disc_bits,
+    block_bits,
+    block_stops,
+    disc_bits_within,
     docked,
     killed,
     light_bits,
     move,
-    object_bits,
     square_at,
     square_is_inner,
     too_close,
+    wall_bits,
     wrap360,
 )
 from evolve.interpreter import (
@@ -77,6 +88,7 @@ from evolve.interpreter import (
     END_POWER_EMPTY,
     END_STEP_LIMIT,
 )
+from evolve.variation import E_RADIUS, E_SCATTER, E_STOPS, E_X0, E_X1, E_Y0, E_Y1, scattered_row
 
 _OBJECT_MASK = OBJECT_LEFT | OBJECT_RIGHT
 _LIGHT_MASK = LIGHT_LEFT | LIGHT_RIGHT
@@ -128,15 +140,30 @@ def _blocked(x, y, others, me, min_dist):
 
 
 @njit(cache=True, inline="always")
-def _walk(gait, table, p, x, y, h, power, lo, hi, squares, inner, others, me, min_dist):
+def _walk(
+    gait, table, sigma, p, x, y, h, power, lo, hi, squares, inner, others, me, min_dist,
+    run_env, key, cycle,
+):  # fmt: skip
     """One gait cycle and the post-step checks, kill zone → power empty → mark square.
 
-    A move that would bring the centre closer than ``min_dist`` to another robot (rows of
-    ``others`` but ``me``) is cancelled: the pose is kept, the step still costs and is checked.
-    Returns (x, y, h, power, lo, hi, squares, inner, end, blocked), end = −1 if the run goes on.
+    ``table`` is the robot's gait table for the run (``evolve.variation``: rows plus bias);
+    cycle number ``cycle`` of the robot (from 0) adds its scatter (σ ``sigma``, the robot's
+    scatter ``key``). A move that would bring the centre closer than ``min_dist`` to another
+    robot (rows of ``others`` but ``me``), or into a station block that stops, is cancelled:
+    the pose is kept, the step still costs and is checked. ``run_env`` = ``_run_env``'s
+    tuple. Returns (x, y, h, power, lo, hi, squares, inner, end, blocked), end = −1 if the
+    run goes on.
     """
-    nx, ny, nh = move(x, y, h, table[gait, 0], table[gait, 1], table[gait, 2])
+    scale, stops, x0, y0, x1, y1, radius = run_env
+    f, t, dh = table[gait, 0], table[gait, 1], table[gait, 2]
+    if scale > 0.0:
+        f, t, dh = scattered_row(
+            f, t, dh, sigma[gait, 0], sigma[gait, 1], sigma[gait, 2], scale, key, cycle
+        )
+    nx, ny, nh = move(x, y, h, f, t, dh)
     blocked = _blocked(nx, ny, others, me, min_dist)
+    if stops and not blocked:
+        blocked = block_stops(x, y, nx, ny, x0, y0, x1, y1, radius)
     if not blocked:
         x, y, h = nx, ny, nh
     power = power - p[P_GAIT_COST + gait]
@@ -155,12 +182,24 @@ def _walk(gait, table, p, x, y, h, power, lo, hi, squares, inner, others, me, mi
 
 
 @njit(cache=True, inline="always")
-def _object_sense(x, y, h, p, others, me, radius):
-    """Active object-sensor bits: the walls and the discs of ``others`` (but row ``me``)."""
-    active = object_bits(x, y, h, p)
+def _run_env(env, seen):
+    """(scatter scale, whether a seen block stops, x0, y0, x1, y1, radius) of a run from the
+    packed envelope ``env`` (``evolve.variation.E_*``): scalars that ``_walk`` reads."""
+    stops = seen and env[E_STOPS] > 0.0
+    return env[E_SCATTER], stops, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1], env[E_RADIUS]
+
+
+@njit(cache=True, inline="always")
+def _object_sense(x, y, h, p, others, me, radius, reach, block):
+    """Active object-sensor bits within ``reach``: the walls, the discs of ``others`` (but row
+    ``me``) and, when ``block`` = (seen, x0, y0, x1, y1) is seen, the station block."""
+    active = wall_bits(x, y, h, reach, p)
     for j in range(others.shape[0]):
         if j != me:
-            active |= disc_bits(x, y, h, others[j, 0], others[j, 1], radius, p)
+            active |= disc_bits_within(x, y, h, others[j, 0], others[j, 1], radius, reach, p)
+    seen, x0, y0, x1, y1 = block
+    if seen:
+        active |= block_bits(x, y, h, x0, y0, x1, y1, reach, p)
     return active
 
 
@@ -183,11 +222,18 @@ def _next_pc(g, k, rem):
 
 
 @njit(cache=True)
-def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_steps):
+def run_one(
+    loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_steps, draws
+):  # fmt: skip
     """Run one chromosome (decoded, (G,) and (G, 4) arrays) from pose (x, y, h).
 
+    ``table``: the robot's gait table for the run; ``draws`` = (packed envelope, σ (16, 3),
+    scatter key, reach, station seen), its envelope draws (``evolve.variation``).
     Returns (squares, inner, steps, docks, end, x, y, h) — the interpreter's ``RunResult``.
     """
+    env, sigma, key, reach, seen = draws
+    run_env = _run_env(env, seen)
+    block = (seen, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1])
     n_genes = loops.shape[0]
     max_branches = int(p[P_MAX_BRANCH])
     backup = int(p[P_BACKUP_GAIT])
@@ -214,8 +260,9 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
         if ops[g, k] == OP_GAIT:
             gait = arg[g, k]
             x, y, h, power, lo, hi, squares, inner, end, _ = _walk(
-                gait, table, p, x, y, h, power, lo, hi, squares, inner, _NO_ROBOTS, -1, 0.0
-            )
+                gait, table, sigma, p, x, y, h, power, lo, hi, squares, inner, _NO_ROBOTS, -1,
+                0.0, run_env, key, steps,
+            )  # fmt: skip
             steps += 1
             branches = 0
             seen_objects = -1
@@ -235,8 +282,8 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
                 stop = False
                 for _ in range(n_backup):
                     x, y, h, power, lo, hi, squares, inner, end, _ = _walk(
-                        backup, table, p, x, y, h, power, lo, hi, squares, inner,
-                        _NO_ROBOTS, -1, 0.0,
+                        backup, table, sigma, p, x, y, h, power, lo, hi, squares, inner,
+                        _NO_ROBOTS, -1, 0.0, run_env, key, steps,
                     )  # fmt: skip
                     steps += 1
                     if end >= 0:
@@ -264,7 +311,7 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
             active = LOW_POWER if (mask & LOW_POWER) and power < p[P_LOW] else 0
             if mask & _OBJECT_MASK:
                 if seen_objects < 0:
-                    seen_objects = object_bits(x, y, h, p)
+                    seen_objects = _object_sense(x, y, h, p, _NO_ROBOTS, -1, 0.0, reach, block)
                 active |= seen_objects
             if mask & _LIGHT_MASK:
                 if seen_lights < 0:
@@ -292,14 +339,17 @@ def run_one(loops, ops, arg, target, nav_run, table, p, x, y, h, power, max_step
 
 @njit(parallel=True, cache=True)
 def evaluate_flat(
-    loops, ops, arg, target, starts, table, p, start_power, max_steps, nav_run, out_int, out_pose
+    loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, out_int, out_pose
 ):
     """Run every (individual, start) pair; writes ``out_int`` (P·S, 5) and ``out_pose`` (P·S, 3).
 
     ``loops`` (P, G), ``ops``/``arg``/``target`` (P, G, 4) int64 from ``codec.decode``;
-    ``starts`` (S, 3) float64; ``table`` (16, 3); ``p`` from ``geometry.pack_world``.
-    Row i·S + s holds individual i from start s.
+    ``starts`` (S, 3) float64; ``draws`` the arrays of ``evolve.variation.KernelDraws`` for
+    S starts × 1 robot (each run's gait table, reach, station, scatter key; σ; the packed
+    envelope); ``p`` from ``geometry.pack_world``. Row i·S + s holds individual i from
+    start s.
     """
+    rows, reach, seen, keys, sigma, env = draws
     n_starts = starts.shape[0]
     total = loops.shape[0] * n_starts
     for idx in prange(total):
@@ -311,13 +361,14 @@ def evaluate_flat(
             arg[i],
             target[i],
             nav_run,
-            table,
+            rows[s, 0],
             p,
             starts[s, 0],
             starts[s, 1],
             starts[s, 2],
             start_power,
             max_steps,
+            (env, sigma, keys[s, 0], reach[s, 0], seen[s]),
         )
         out_int[idx, OUT_SQUARES] = r[0]
         out_int[idx, OUT_INNER] = r[1]
@@ -329,8 +380,9 @@ def evaluate_flat(
         out_pose[idx, 2] = r[7]
 
 
-def run_flat(loops, ops, arg, target, starts, table, p, start_power, max_steps, nav_run):
-    """Allocate outputs and run ``evaluate_flat`` with dynamic chunks; returns (ints, poses)."""
+def run_flat(loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run):
+    """Allocate outputs and run ``evaluate_flat`` with dynamic chunks; returns (ints, poses).
+    ``draws``: ``evolve.variation.KernelDraws`` of S starts × 1 robot."""
     total = loops.shape[0] * starts.shape[0]
     out_int = np.zeros((total, 5), dtype=np.int64)
     out_pose = np.zeros((total, 3), dtype=np.float64)
@@ -342,7 +394,7 @@ def run_flat(loops, ops, arg, target, starts, table, p, start_power, max_steps, 
             arg,
             target,
             starts,
-            table,
+            tuple(draws),
             p,
             float(start_power),
             int(max_steps),
@@ -428,7 +480,7 @@ def _start(loops, power0, max_steps, pose, power, st, masks):
 
 
 @njit(cache=True)
-def run_colony_one(code, nav_run, table, p, power0, max_steps, colony, pose, power, st, masks, out):
+def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, power, st, masks, out):
     """Run one chromosome on every robot of a colony (SPEC §7) in place.
 
     One colony step: each live robot in index order takes a charging step, or a backup
@@ -437,11 +489,16 @@ def run_colony_one(code, nav_run, table, p, power0, max_steps, colony, pose, pow
     distance, charge steps, colony-step limit or −1). ``pose`` (R, 3) holds the start poses
     and receives the final ones; ``power`` (R,), ``st`` (R, S_COLUMNS), ``masks`` (R, 2)
     uint64 are the robots' state; ``out`` receives (colony squares, inner, colony steps).
+    ``draws`` = (gait tables (R, 16, 3), reaches (R,), station seen, scatter keys (R,), σ
+    (16, 3), packed envelope): the run's envelope draws (``evolve.variation``).
     The turn is written out here, not in a helper: an inlined helper taking these arrays
     would increment and decrement each one's reference count on every turn (see the module
     docstring).
     """
     loops, ops, arg, target = code
+    rows, reach, seen, keys, sigma, env = draws
+    run_env = _run_env(env, seen)
+    block = (seen, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1])
     radius, min_dist = colony[0], colony[1]
     charge_steps, step_limit = int(colony[2]), int(colony[3])
     max_branches = int(p[P_MAX_BRANCH])
@@ -472,7 +529,9 @@ def run_colony_one(code, nav_run, table, p, power0, max_steps, colony, pose, pow
                     active = LOW_POWER if (mask & LOW_POWER) and pw < p[P_LOW] else 0
                     if mask & _OBJECT_MASK:
                         if seen_objects < 0:
-                            seen_objects = _object_sense(x, y, h, p, pose, i, radius)
+                            seen_objects = _object_sense(
+                                x, y, h, p, pose, i, radius, reach[i], block
+                            )
                         active |= seen_objects
                     if mask & _LIGHT_MASK:
                         if seen_lights < 0:
@@ -494,8 +553,9 @@ def run_colony_one(code, nav_run, table, p, power0, max_steps, colony, pose, pow
             if end < 0:
                 lo, hi, sq, inner = masks[i, 0], masks[i, 1], st[i, S_SQUARES], st[i, S_INNER]
                 x, y, h, pw, lo, hi, sq, inner, end, blocked = _walk(
-                    gait, table, p, x, y, h, pw, lo, hi, sq, inner, pose, i, min_dist
-                )
+                    gait, rows[i], sigma, p, x, y, h, pw, lo, hi, sq, inner, pose, i, min_dist,
+                    run_env, keys[i], st[i, S_STEPS],
+                )  # fmt: skip
                 pose[i, 0], pose[i, 1], pose[i, 2], power[i] = x, y, h, pw
                 masks[i, 0], masks[i, 1], st[i, S_SQUARES], st[i, S_INNER] = lo, hi, sq, inner
                 st[i, S_STEPS] += 1
@@ -534,11 +594,13 @@ def run_colony_one(code, nav_run, table, p, power0, max_steps, colony, pose, pow
 
 @njit(parallel=True, cache=True)
 def evaluate_colony_flat(
-    loops, ops, arg, target, starts, table, p, start_power, max_steps, nav_run, colony,
+    loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, colony,
     st, pose, power, masks, out_run,
 ):  # fmt: skip
-    """Run every (individual, colony start) pair: ``starts`` (S, R, 3); state and outputs
-    (P·S, R, …) and ``out_run`` (P·S, 3), row i·S + s for individual i from start s."""
+    """Run every (individual, colony start) pair: ``starts`` (S, R, 3); ``draws`` the arrays
+    of ``evolve.variation.KernelDraws`` for S starts × R robots; state and outputs (P·S, R, …)
+    and ``out_run`` (P·S, 3), row i·S + s for individual i from start s."""
+    rows, reach, seen, keys, sigma, env = draws
     n_starts = starts.shape[0]
     total = loops.shape[0] * n_starts
     for idx in prange(total):
@@ -546,13 +608,14 @@ def evaluate_colony_flat(
         s = idx - i * n_starts
         pose[idx] = starts[s]
         run_colony_one(
-            (loops[i], ops[i], arg[i], target[i]), nav_run, table, p, start_power, max_steps,
+            (loops[i], ops[i], arg[i], target[i]), nav_run,
+            (rows[s], reach[s], seen[s], keys[s], sigma, env), p, start_power, max_steps,
             colony, pose[idx], power[idx], st[idx], masks[idx], out_run[idx],
         )  # fmt: skip
 
 
 def run_colony_flat(
-    loops, ops, arg, target, starts, table, p, start_power, max_steps, nav_run, colony
+    loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, colony
 ):
     """Allocate state and outputs, run ``evaluate_colony_flat`` with dynamic chunks; returns
     (robot state (P·S, R, S_COLUMNS), final poses (P·S, R, 3), run outputs (P·S, 3))."""
@@ -566,7 +629,7 @@ def run_colony_flat(
     old = numba.set_parallel_chunksize(CHUNK)
     try:
         evaluate_colony_flat(
-            loops, ops, arg, target, starts, table, p, float(start_power), int(max_steps),
+            loops, ops, arg, target, starts, tuple(draws), p, float(start_power), int(max_steps),
             bool(nav_run), np.asarray(colony, dtype=np.float64), st, pose, power, masks, out_run,
         )  # fmt: skip
     finally:

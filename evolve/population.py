@@ -11,7 +11,8 @@ breeding the next one — anytime learning drives several populations in lockste
     for g in 0..G:
         [checkpoint (g, pop, rng state) every CHECKPOINT_EVERY generations]
         starts = 10 start poses drawn from rng             # shared by the population
-        fitness = mean over starts of the run fitness      # unique genomes evaluated once
+        fitness = mean over starts of the run fitness      # unique genomes evaluated once,
+                                                           # in the stage's envelope, key (seed, g)
         [save population + best if g is a save generation]
         if g < G: pop = next_generation(pop, fitness, rng)
 
@@ -33,6 +34,7 @@ import numpy as np
 from evolve import ga as gaops
 from evolve.checkpoint import check_array, check_settings, read_npz, write_npz
 from evolve.codec import GENE_BITS, SECTION_GENES
+from evolve.envelope import NONE, Envelope
 from evolve.interpreter import END_DOCKED
 from evolve.settings import GASettings, WorldSettings
 from evolve.table import GaitTable
@@ -81,6 +83,10 @@ class Stage:
     """``training_starts(rng, n, world, generation)``: the start poses of a generation's runs
     when they are not ``starts``' (the navigation stage's growing start region); None:
     ``starts``. The test starts always come from ``starts``."""
+    envelope: Envelope = NONE
+    """The envelope of variation (SPEC §9) every evaluation of the stage runs in: training
+    with the key (seed, generation), tests with ``evolve.envelope.key_of_test``; ``NONE``: the
+    world of §3. A stage evolved in an envelope reports its tests in both worlds."""
 
     def genomes(self, sections: np.ndarray) -> np.ndarray:
         """Chromosomes the kernel runs: the sections, or sections + navigation (P, 16, 30)."""
@@ -96,8 +102,10 @@ def evaluate_sections(
     stage: Stage,
     table: GaitTable,
     world: WorldSettings,
+    key: tuple[int, ...] = (0, 0),
 ) -> tuple[np.ndarray, Any, np.ndarray, np.ndarray]:
-    """Run every distinct section once from every start.
+    """Run every distinct section once from every start, in ``stage.envelope`` with the draws
+    of ``key`` (the stage's seed and the generation, or a test's key).
 
     Returns ``(run_fitness (P, S), evaluation of the unique genomes, unique index (U,),
     inverse (P,))`` where row p of the population's results is row ``inverse[p]`` of the
@@ -110,14 +118,16 @@ def evaluate_sections(
     packed = np.packbits(sections.reshape(p, -1), axis=1)
     _, first, inverse = np.unique(packed, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
+    varied = {} if stage.envelope == NONE else {"envelope": stage.envelope, "envelope_key": key}
     ev = (stage.evaluate or evaluate)(
         stage.genomes(sections[first]),
         np.ascontiguousarray(starts, dtype=np.float64),
-        table=table.values,
+        table=table,
         mode=stage.mode,
         start_power=world.start_power_v,
         max_steps=stage.max_steps,
         settings=world,
+        **varied,
     )
     run_fit = stage.run_fitness(ev, starts, world)
     return run_fit[inverse], ev, first, inverse
@@ -295,7 +305,7 @@ class PopulationRun:
         else:
             starts = draw(self.rng, n, self.world, self.generation)
         run_fit, ev, first, inverse = evaluate_sections(
-            self.pop, starts, self.stage, self.table, self.world
+            self.pop, starts, self.stage, self.table, self.world, (self.ga.seed, self.generation)
         )
         docked = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == END_DOCKED)
         self._pending = Generation(

@@ -6,6 +6,13 @@ navigation picks its section among the saved bests (``NavigationSettings``), cov
 measures Figure 9, where its finalists hand control to navigation (``evolve.handoff``) and
 draws Figures 8 and 10.
 
+A stage may evolve in an envelope of variation (SPEC §9, ``evolve.envelope``; ``none`` by
+default): its training runs vary with the key (seed, generation), its tests are run in the
+envelope (key ``key_of_test(seed, test)``) and in the world of §3 on the same starts. The
+existing summary keys keep the world of §3; the envelope's figures sit beside them, prefixed
+``envelope_`` (absent for ``none``, whose files are as before); ``settings.json`` records the
+envelope (no ``Envelope`` entry: ``none``).
+
 Before anything is allocated or written, a stage checks that its sizes fit the machine
 (``stage_need``, ``infra.bounds``) and takes its folder (``infra.rundir.run_folder``: an OS
 lock, ``settings.json`` as the ownership record; ``resume`` continues a run with the same
@@ -25,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import dataclasses
 import functools
 import io
 import json
@@ -39,6 +47,7 @@ import numpy as np
 
 from evolve.checkpoint import read_npz
 from evolve.codec import GENE_BITS, SECTION_GENES, write_chromosome
+from evolve.envelope import NONE, ROBOT_RADIUS, Envelope, key_of_test
 from evolve.handoff import collect_handoffs, handoff_rate, write_handoffs
 from evolve.interpreter import END_DOCKED
 from evolve.population import (
@@ -66,6 +75,7 @@ from evolve.settings import (
 )
 from evolve.starts import coverage_starts, navigation_starts, navigation_training_starts
 from evolve.table import GaitTable
+from evolve.variation import Variation
 from infra.bounds import LIMITS, Limits, Need, check_int, check_need
 from infra.executors import BatchError, Executor, Failed, RayExecutor, values_or_raise
 from infra.io import atomic_write_json, atomic_write_text
@@ -117,10 +127,11 @@ def navigation_stage(
     world: WorldSettings,
     navigation: NavigationSettings = DEFAULT_NAVIGATION,
     generations: int = NAVIGATION_GENERATIONS,
+    envelope: Envelope = NONE,
 ) -> Stage:
-    """The navigation stage (SPEC §6) of ``generations`` generations; ``navigation`` (the
-    growing training start region, how the final section is chosen) is saved with its
-    settings."""
+    """The navigation stage (SPEC §6) of ``generations`` generations in ``envelope``;
+    ``navigation`` (the growing training start region, how the final section is chosen) is
+    saved with its settings."""
     ramp = navigation.ramp_generations(generations)
     return Stage(
         "navigation",
@@ -129,6 +140,7 @@ def navigation_stage(
         navigation_starts,
         navigation_run_fitness,
         extra_settings=(navigation,),
+        envelope=envelope,
         training_starts=None
         if ramp == 0
         else functools.partial(
@@ -139,11 +151,15 @@ def navigation_stage(
     )
 
 
-def coverage_stage(world: WorldSettings, navigation: np.ndarray) -> Stage:
+def coverage_stage(
+    world: WorldSettings, navigation: np.ndarray, envelope: Envelope = NONE
+) -> Stage:
+    """The coverage stage (SPEC §5) with the fixed ``navigation`` section, in ``envelope``."""
     nav = _check_navigation(navigation)
     return Stage(
-        "coverage", "coverage", world.coverage_steps, coverage_starts, coverage_run_fitness, nav
-    )
+        "coverage", "coverage", world.coverage_steps, coverage_starts, coverage_run_fitness, nav,
+        envelope=envelope,
+    )  # fmt: skip
 
 
 def navigation_section(bits: np.ndarray) -> np.ndarray:
@@ -163,8 +179,11 @@ def stage_settings_doc(
     stage: Stage, ga: GASettings, world: WorldSettings, table: GaitTable
 ) -> dict[str, Any]:
     """Everything a stage's results depend on (its ``settings.json`` and checkpoints' record):
-    the settings dataclasses, the stage, the table, the navigation section."""
+    the settings dataclasses, the stage, the table, the navigation section, the envelope
+    (when not ``none``: a folder made before envelopes existed resumes as it was)."""
     doc = json.loads(settings_json(ga, world, *stage.extra_settings))
+    if stage.envelope != NONE:
+        doc["Envelope"] = stage.envelope.to_dict()
     doc["stage"] = stage.name
     doc["table"] = {"source": table.source, "values": table.values.tolist()}
     if stage.navigation is not None:
@@ -205,6 +224,19 @@ def check_ga(ga: GASettings, max_steps: int) -> None:
         raise StageError(str(exc)) from exc
 
 
+def check_envelope(stage: Stage, table: GaitTable, world: WorldSettings) -> None:
+    """Refuse a stage whose envelope cannot vary ``table`` in ``world`` (a table without σ, a
+    reach beyond the activation distance): ``EnvelopeError`` before any work."""
+    Variation.of(stage.envelope, table, world, (0, 0), ROBOT_RADIUS)
+
+
+def both_worlds(stage: Stage) -> list[tuple[str, Stage]]:
+    """(prefix, stage) of each world a stage's tests report: the world of §3 (prefix ``""``,
+    the existing keys) and, for a stage evolved in an envelope, the envelope (``"envelope_"``)."""
+    plain = [("", dataclasses.replace(stage, envelope=NONE))]
+    return plain if stage.envelope == NONE else plain + [("envelope_", stage)]
+
+
 @contextmanager
 def _stage_folder(
     stage: Stage, folder: Path, table: GaitTable, ga: GASettings, world: WorldSettings,
@@ -213,6 +245,7 @@ def _stage_folder(
     """Check the sizes, then hold the stage's folder (lock, ownership record) for the block;
     yields the settings document."""
     check_ga(ga, stage.max_steps)
+    check_envelope(stage, table, world)
     doc = stage_settings_doc(stage, ga, world, table)
     with run_folder(folder, doc, owned=STAGE_FILES, resume=resume, force=force):
         yield doc
@@ -297,6 +330,7 @@ def run_navigation(
     force: bool = False,
     on_generation: OnGeneration | None = None,
     executor: Executor | None = None,
+    envelope: Envelope = NONE,
 ) -> dict[str, Any]:
     """Navigation stage (SPEC §6) into ``out/navigation``; returns the summary dict.
 
@@ -315,9 +349,15 @@ def run_navigation(
     (every candidate's selection dock rate and fitness), ``populations`` (each population's
     final best on the test starts: fitness, dock rate, final training fitness), ``wall_s``,
     ``settings``.
+
+    ``envelope`` (SPEC §9): the populations evolve in it and the candidates are compared in
+    it (key ``key_of_test(seed, "selection")``); the test keys above stay the world of §3,
+    and ``envelope_dock_success``, ``envelope_mean_steps_to_dock``, ``envelope_test_fitness``
+    (and ``envelope_dock_rate``, ``envelope_test_fitness`` per population) give the same
+    test starts in the envelope (key ``key_of_test(seed, "docking")``).
     """
     ga = navigation_ga_settings() if ga is None else ga
-    stage = navigation_stage(world, navigation, ga.generations)
+    stage = navigation_stage(world, navigation, ga.generations, envelope)
     folder = Path(out) / "navigation"
     with _stage_folder(stage, folder, table, ga, world, resume, force) as doc:
         t0 = time.perf_counter()
@@ -364,11 +404,12 @@ def navigation_candidates(
 
 
 def _dock_stats(
-    sections: np.ndarray, starts: np.ndarray, stage: Stage, table: GaitTable, world: WorldSettings
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    sections: np.ndarray, starts: np.ndarray, stage: Stage, table: GaitTable,
+    world: WorldSettings, key: tuple[int, ...] = (0, 0),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """Per section: (mean run fitness, dock rate, mean steps to dock (NaN if none), end codes
-    (C, S)) on ``starts``."""
-    run_fit, ev, _, inverse = evaluate_sections(sections, starts, stage, table, world)
+    (C, S)) on ``starts``, in ``stage``'s envelope with the draws of ``key``."""
+    run_fit, ev, _, inverse = evaluate_sections(sections, starts, stage, table, world, key)
     ends = np.asarray(ev.end)[inverse]
     docked = ends == END_DOCKED
     steps = np.asarray(ev.steps, dtype=float)[inverse]
@@ -388,12 +429,19 @@ def _navigation_summary(
     cands = navigation_candidates(folder, results, ga, nav)
     sel_starts = stage.starts(stage_rng(ga.seed, stage.name, 1), nav.selection_starts, world)
     sections = np.stack([c[2] for c in cands])
-    sel_fit, sel_dock, _, sel_ends = _dock_stats(sections, sel_starts, stage, table, world)
+    sel_key = key_of_test(ga.seed, "selection")
+    sel_fit, sel_dock, _, sel_ends = _dock_stats(sections, sel_starts, stage, table, world,
+                                                 sel_key)  # fmt: skip
     c = choose_section(sel_dock, sel_fit, nav.criterion)
     chosen_k, chosen_g, chosen = cands[c]
     finals = np.stack([r.best for r in results])
-    fit, dock, steps, _ = _dock_stats(np.concatenate([chosen[None], finals]), test_starts,
-                                      stage, table, world)  # fmt: skip
+    tested = np.concatenate([chosen[None], finals])
+    stats = {
+        prefix: _dock_stats(tested, test_starts, st, table, world,
+                            key_of_test(ga.seed, "docking"))
+        for prefix, st in both_worlds(stage)
+    }  # fmt: skip
+    fit, dock, steps, _ = stats[""]
     per_pop = []
     for j, r in enumerate(results, start=1):
         k = r.index
@@ -402,6 +450,10 @@ def _navigation_summary(
             "mean_steps_to_dock": _maybe(steps[j]),
             "final_training_fitness": float(r.history[-1, 1]),
         })  # fmt: skip
+        if "envelope_" in stats:
+            e_fit, e_dock, _, _ = stats["envelope_"]
+            per_pop[-1] |= {"envelope_test_fitness": float(e_fit[j]),
+                            "envelope_dock_rate": float(e_dock[j])}  # fmt: skip
         extra = (f"test fitness {fit[j]:.4f}, docked {dock[j]:.0%} of {len(test_starts)} test "
                  "starts")  # fmt: skip
         write_chromosome(folder / f"best_pop{k}.txt", r.best,
@@ -409,7 +461,7 @@ def _navigation_summary(
     header = _provenance(
         "navigation", chosen_k, ga, table,
         f"chosen: the best of {len(cands)} candidates by {nav.criterion} on "
-        f"{len(sel_starts)} selection starts (docked {sel_dock[c]:.0%}); docked "
+        f"{len(sel_starts)} selection starts{_in(stage)} (docked {sel_dock[c]:.0%}); docked "
         f"{dock[0]:.0%} of {len(test_starts)} fresh test starts",
         generation=chosen_g,
     )  # fmt: skip
@@ -417,7 +469,7 @@ def _navigation_summary(
     figures.docking_map(
         folder / "docking.png", sel_starts, sel_ends[c], world,
         f"navigation/best.txt (generation {chosen_g} of population {chosen_k}) from "
-        f"{len(sel_starts)} selection starts: docked {sel_dock[c]:.1%}",
+        f"{len(sel_starts)} selection starts{_in(stage)}: docked {sel_dock[c]:.1%}",
     )  # fmt: skip
     return {
         "stage": "navigation",
@@ -442,7 +494,26 @@ def _navigation_summary(
             for (k, g, _), d, f in zip(cands, sel_dock, sel_fit, strict=True)
         ],  # fmt: skip
         "populations": per_pop,
+    } | _envelope_docking(stage, stats)
+
+
+def _envelope_docking(stage: Stage, stats: dict[str, tuple]) -> dict[str, Any]:
+    """The chosen section's test figures in the envelope (``envelope_*`` keys; none without
+    one)."""
+    if "envelope_" not in stats:
+        return {}
+    fit, dock, steps, _ = stats["envelope_"]
+    return {
+        "envelope": stage.envelope.to_dict(),
+        "envelope_dock_success": float(dock[0]),
+        "envelope_mean_steps_to_dock": _maybe(steps[0]),
+        "envelope_test_fitness": float(fit[0]),
     }
+
+
+def _in(stage: Stage) -> str:
+    """Where a stage's own runs (selection) happen, for titles: "" or " in the envelope"."""
+    return "" if stage.envelope == NONE else " in the envelope"
 
 
 def _maybe(v: float) -> float | None:
@@ -475,6 +546,7 @@ def run_coverage(
     force: bool = False,
     on_generation: OnGeneration | None = None,
     executor: Executor | None = None,
+    envelope: Envelope = NONE,
 ) -> dict[str, Any]:
     """Coverage stage (SPEC §5) into ``out/coverage`` with Figures 8–10; returns the summary.
     ``executor``: where the populations evolve, as in ``run_navigation``.
@@ -487,9 +559,14 @@ def run_coverage(
     often navigation docked after each finalist's switches to it on the Figure 9 test
     starts, all finalists and per population; every hand-off in ``handoffs.csv``),
     ``wall_s``, ``settings``.
+
+    ``envelope`` (SPEC §9): the populations evolve in it; Figure 9 is also measured in it on
+    the same test starts (key ``key_of_test(seed, "figure9")``): ``envelope_figure9_*``,
+    ``envelope_final_*`` beside the keys above (the world of §3), and ``envelope`` (its
+    fields); hand-offs and Figure 10 stay in the world of §3.
     """
     out = Path(out)
-    stage = coverage_stage(world, navigation)
+    stage = coverage_stage(world, navigation, envelope)
     with _stage_folder(stage, out / "coverage", table, ga, world, resume, force) as doc:
         return _coverage(stage, out, doc, table, ga, world, resume, on_generation, executor)
 
@@ -509,9 +586,9 @@ def _coverage(
         executor=executor,
     )  # fmt: skip
     gens = save_generations(ga)
-    inner, squares = figure9_test(folder, stage, table, world, gens, ga.populations, test_starts)
-    mean = inner.mean(axis=0)
-    _write_figure9(folder, gens, inner, squares)
+    fig9 = figure9_both(folder, stage, table, world, gens, ga.populations, test_starts, ga.seed)
+    inner = fig9[""][0]
+    _write_figure9(folder, gens, fig9, stage.envelope)
     figures.figure9(folder / "figure9.png", gens, inner)
     figures.figure8(out / "figure8.png", world)
     handoffs = {
@@ -539,11 +616,7 @@ def _coverage(
     summary = {
         "stage": "coverage",
         "generations": list(gens),
-        "figure9_mean_inner_percent": mean.tolist(),
-        "figure9_inner_percent": inner.tolist(),
-        "final_mean_inner_percent": float(mean[-1]),
-        "final_inner_percent": inner[:, -1].tolist(),
-        "final_mean_squares": squares[:, -1].tolist(),
+        **figure9_summary(fig9[""]),
         "figure10": fig10,
         "handoffs": {
             "all": handoff_rate(h for runs in handoffs.values() for found in runs for h in found),
@@ -555,9 +628,46 @@ def _coverage(
         "wall_s": time.perf_counter() - t0,
         "resumed": bool(resume),
         "settings": doc,
-    }
+    } | envelope_figure9(stage, fig9)
     atomic_write_json(folder / "summary.json", summary)
     return summary
+
+
+def figure9_summary(fig9: tuple[np.ndarray, np.ndarray], prefix: str = "") -> dict[str, Any]:
+    """Summary keys of one world's Figure 9 (inner %, squares; (populations, generations)):
+    per generation the mean and each population's inner %, the final ones, the final mean
+    squares; keys prefixed by ``prefix``."""
+    inner, squares = fig9
+    mean = inner.mean(axis=0)
+    return {
+        f"{prefix}figure9_mean_inner_percent": mean.tolist(),
+        f"{prefix}figure9_inner_percent": inner.tolist(),
+        f"{prefix}final_mean_inner_percent": float(mean[-1]),
+        f"{prefix}final_inner_percent": inner[:, -1].tolist(),
+        f"{prefix}final_mean_squares": squares[:, -1].tolist(),
+    }
+
+
+def envelope_figure9(
+    stage: Stage, fig9: dict[str, tuple[np.ndarray, np.ndarray]]
+) -> dict[str, Any]:
+    """The envelope's Figure 9 summary keys (``envelope_*``) and fields; none without one."""
+    if "envelope_" not in fig9:
+        return {}
+    return {"envelope": stage.envelope.to_dict(), **figure9_summary(fig9["envelope_"], "envelope_")}
+
+
+def figure9_both(
+    folder: Path, stage: Stage, table: GaitTable, world: WorldSettings,
+    generations: tuple[int, ...], populations: int, test_starts: np.ndarray, seed: int,
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:  # fmt: skip
+    """``figure9_test`` in each world of ``both_worlds``, keyed by its prefix (the envelope's
+    draws: ``key_of_test(seed, "figure9")``, the same for every saved best)."""
+    key = key_of_test(seed, "figure9")
+    return {
+        prefix: figure9_test(folder, st, table, world, generations, populations, test_starts, key)
+        for prefix, st in both_worlds(stage)
+    }
 
 
 def figure9_test(
@@ -568,10 +678,12 @@ def figure9_test(
     generations: tuple[int, ...],
     populations: int,
     test_starts: np.ndarray,
+    key: tuple[int, ...] = (0, 0),
 ) -> tuple[np.ndarray, np.ndarray]:
     """Figure 9 (SPEC §5): the saved best of every generation in ``generations`` of every
-    population, run from the shared ``test_starts``. Returns (inner %, of the inner squares;
-    mean squares, of 100), each (populations, generations)."""
+    population, run from the shared ``test_starts`` (in ``stage``'s envelope, with the draws
+    of ``key``). Returns (inner %, of the inner squares; mean squares, of 100), each
+    (populations, generations)."""
     inner = np.zeros((populations, len(generations)))
     squares = np.zeros_like(inner)
     for k in range(populations):
@@ -580,31 +692,43 @@ def figure9_test(
             path = folder / "populations" / f"pop{k}_gen{g:04d}.npz"
             bests.append(read_npz(path, "saved population", ("best",), error=StageError)["best"])
         sections = np.stack(bests).astype(np.uint8)
-        _, ev, _, inverse = evaluate_sections(sections, test_starts, stage, table, world)
+        _, ev, _, inverse = evaluate_sections(sections, test_starts, stage, table, world, key)
         inner[k] = 100.0 * ev.inner_squares[inverse].mean(axis=1) / world.inner_square_count
         squares[k] = ev.squares[inverse].mean(axis=1)
     return inner, squares
 
 
-def _write_figure9(folder: Path, gens: tuple[int, ...], inner: np.ndarray, sq: np.ndarray) -> None:
+def _write_figure9(
+    folder: Path, gens: tuple[int, ...], fig9: dict[str, tuple[np.ndarray, np.ndarray]],
+    envelope: Envelope = NONE,
+) -> None:  # fmt: skip
+    """``figure9.csv`` and ``figure9.json`` of each world of ``fig9`` (prefix → (inner %,
+    squares)): the world of §3's columns and keys, then the envelope's, prefixed."""
+    prefixes = list(fig9)
+    inner = fig9[""][0]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(("population", "generation", "inner_percent"))
+    w.writerow(("population", "generation", *(f"{p}inner_percent" for p in prefixes)))
     for k in range(inner.shape[0]):
         for j, g in enumerate(gens):
-            w.writerow((k, g, f"{inner[k, j]:.4f}"))
+            w.writerow((k, g, *(f"{fig9[p][0][k, j]:.4f}" for p in prefixes)))
     atomic_write_text(folder / "figure9.csv", buf.getvalue())
-    atomic_write_json(
-        folder / "figure9.json",
-        {
-            "generations": list(gens),
-            "inner_percent": {str(k): inner[k].tolist() for k in range(inner.shape[0])},
-            "mean_inner_percent": inner.mean(axis=0).tolist(),
-            "mean_squares_of_100": {str(k): sq[k].tolist() for k in range(sq.shape[0])},
-            "note": "best individual of each saved generation on the shared fresh test starts; "
-            "inner squares reached / 64 × 100",
-        },
+    doc: dict[str, Any] = {"generations": list(gens)}
+    for p in prefixes:
+        inner, sq = fig9[p]
+        doc |= {
+            f"{p}inner_percent": {str(k): inner[k].tolist() for k in range(inner.shape[0])},
+            f"{p}mean_inner_percent": inner.mean(axis=0).tolist(),
+            f"{p}mean_squares_of_100": {str(k): sq[k].tolist() for k in range(sq.shape[0])},
+        }
+    if envelope != NONE:
+        doc["envelope"] = envelope.to_dict()
+    doc["note"] = (
+        "best individual of each saved generation on the shared fresh test starts; "
+        "inner squares reached / 64 × 100"
+        + ("; envelope_*: the same runs in the envelope of variation" if envelope != NONE else "")
     )
+    atomic_write_json(folder / "figure9.json", doc)
 
 
 __all__ = [
@@ -613,7 +737,12 @@ __all__ = [
     "StageError",
     "check_ga",
     "run_navigation",
+    "both_worlds",
+    "check_envelope",
     "choose_section",
+    "envelope_figure9",
+    "figure9_both",
+    "figure9_summary",
     "navigation_candidates",
     "run_coverage",
     "navigation_run_fitness",

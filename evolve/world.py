@@ -11,6 +11,11 @@ robot's sensors see of the others; the interpreter keeps everything else per rob
 mode, program counter, loops, branch counter) and for the colony (the order of steps, the
 station's occupancy, squares). ``TableColony`` is the table world's colony: robots are discs
 of ``ColonySettings.disc_radius``, a move that would overlap another disc is cancelled.
+
+Both table worlds take an envelope of variation (SPEC §9, ``evolve.envelope``) with the key of
+its draws and the start's index in the batch (``evaluate``'s column): the world carries the
+variation (rows, scatter, reach, the station block; ``evolve.variation.RobotRun``) and the
+interpreter runs unchanged. The envelope ``none`` (the default) is the world of §3.
 """
 
 from __future__ import annotations
@@ -21,8 +26,10 @@ import numpy as np
 
 from evolve import geometry
 from evolve.codec import LIGHT_LEFT, LIGHT_RIGHT, OBJECT_LEFT, OBJECT_RIGHT
+from evolve.envelope import NONE, ROBOT_RADIUS, Envelope
 from evolve.settings import ColonySettings, WorldSettings
 from evolve.table import validate_table
+from evolve.variation import RobotRun, variation_for
 
 
 class World(Protocol):
@@ -33,8 +40,9 @@ class World(Protocol):
         ...
 
     def step(self, gait: int) -> bool | None:
-        """Execute one gait cycle of gait 0–15. A colony robot's view (``RobotView``) returns
-        whether another robot blocked the move; a lone robot's world returns None."""
+        """Execute one gait cycle of gait 0–15. Returns whether the move was cancelled
+        (another robot of a colony, an envelope's station block); a world that never cancels
+        may return None."""
         ...
 
     def object_sensors(self) -> tuple[bool, bool]:
@@ -50,8 +58,11 @@ class TableWorld:
     """The table simulation's world: gait cycles apply rows of a (16, 3) gait table (SPEC §1);
     sensors are the exact geometric rules of SPEC §3 (``evolve.geometry``).
 
-    ``table`` rows are (F cm, T cm, dH deg); (x, y) in arena units, heading ``h`` in degrees
-    (wrapped into [0, 360)).
+    ``table`` rows are (F cm, T cm, dH deg) (a ``GaitTable`` or an array); (x, y) in arena
+    units, heading ``h`` in degrees (wrapped into [0, 360)). ``envelope`` varies the world
+    (SPEC §9) with the draws of ``envelope_key`` (seed, generation or test) at start index
+    ``start``, as ``evolve.evaluate`` does for that column; a move into a seen station block
+    that stops motion is cancelled (``step`` returns True).
     """
 
     def __init__(
@@ -61,11 +72,17 @@ class TableWorld:
         y: float,
         h: float,
         world: WorldSettings | None = None,
+        *,
+        envelope: Envelope = NONE,
+        envelope_key: tuple[int, ...] = (0, 0),
+        start: int = 0,
     ) -> None:
         self.table = validate_table(getattr(table, "values", table))
         self.world = WorldSettings() if world is None else world
         self._p = geometry.packed_tuple(self.world)
-        self._rows = [tuple(float(v) for v in row) for row in self.table]
+        var = variation_for(envelope, table, self.world, envelope_key, ROBOT_RADIUS)
+        seen = var is not None and var.station_seen(start)
+        self._run = RobotRun(var, self.table, self._p, start, 0, seen)
         self._x = float(x)
         self._y = float(y)
         self._h = geometry.wrap360(float(h))
@@ -74,14 +91,17 @@ class TableWorld:
         """Current (x, y, heading)."""
         return (self._x, self._y, self._h)
 
-    def step(self, gait: int) -> None:
-        """Apply one cycle of ``gait`` (0–15)."""
-        f, t, dh = self._rows[gait]
-        self._x, self._y, self._h = geometry.move(self._x, self._y, self._h, f, t, dh)
+    def step(self, gait: int) -> bool:
+        """Apply one cycle of ``gait`` (0–15); True when the station block cancelled it."""
+        nx, ny, nh = geometry.move(self._x, self._y, self._h, *self._run.row(gait))
+        if self._run.stopped(self._x, self._y, nx, ny):
+            return True
+        self._x, self._y, self._h = nx, ny, nh
+        return False
 
     def object_sensors(self) -> tuple[bool, bool]:
         """(left, right) object sensors."""
-        bits = geometry.object_bits(self._x, self._y, self._h, self._p)
+        bits = self._run.object_bits(self._x, self._y, self._h)
         return bool(bits & OBJECT_LEFT), bool(bits & OBJECT_RIGHT)
 
     def light_sensors(self) -> tuple[bool, bool]:
@@ -149,6 +169,8 @@ class TableColony:
     centre is cancelled (the robot keeps its whole pose). Object sensors see the walls and
     every point of the other robots' discs (``geometry.disc_bits``); light sensors are the
     lone robot's. ``starts`` is (R, 3): x, y (arena units), heading (deg) per robot.
+    ``envelope``, ``envelope_key``, ``start``: as ``TableWorld``, robot i drawing as robot i
+    of ``evolve.evaluate_colony``'s column ``start``; a seen station block is one for all.
     """
 
     def __init__(
@@ -157,6 +179,10 @@ class TableColony:
         starts: np.ndarray,
         world: WorldSettings | None = None,
         colony: ColonySettings | None = None,
+        *,
+        envelope: Envelope = NONE,
+        envelope_key: tuple[int, ...] = (0, 0),
+        start: int = 0,
     ) -> None:
         self.table = validate_table(getattr(table, "values", table))
         self.world = WorldSettings() if world is None else world
@@ -165,10 +191,12 @@ class TableColony:
         if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
             raise ValueError(f"starts must be (R, 3) of x, y, heading, got {arr.shape}")
         self._p = geometry.packed_tuple(self.world)
-        self._rows = [tuple(float(v) for v in row) for row in self.table]
-        self._poses = [(float(x), float(y), geometry.wrap360(float(h))) for x, y, h in arr]
         self._radius = float(self.colony.disc_radius)
         self._min_dist = float(self.colony.min_distance)
+        var = variation_for(envelope, table, self.world, envelope_key, self._radius)
+        seen = var is not None and var.station_seen(start)
+        self._runs = [RobotRun(var, self.table, self._p, start, i, seen) for i in range(len(arr))]
+        self._poses = [(float(x), float(y), geometry.wrap360(float(h))) for x, y, h in arr]
 
     @property
     def robots(self) -> int:
@@ -179,21 +207,25 @@ class TableColony:
 
     def step(self, i: int, gait: int) -> bool:
         """Apply one cycle of ``gait`` to robot ``i`` unless it would come too close to
-        another robot; returns True when the move was cancelled."""
+        another robot (or into a station block that stops); returns True when the move was
+        cancelled."""
         x, y, h = self._poses[i]
-        nx, ny, nh = geometry.move(x, y, h, *self._rows[gait])
+        nx, ny, nh = geometry.move(x, y, h, *self._runs[i].row(gait))
         for j, (ox, oy, _) in enumerate(self._poses):
             if j != i and geometry.too_close(nx, ny, ox, oy, self._min_dist):
                 return True
+        if self._runs[i].stopped(x, y, nx, ny):
+            return True
         self._poses[i] = (nx, ny, nh)
         return False
 
     def object_sensors(self, i: int) -> tuple[bool, bool]:
         x, y, h = self._poses[i]
-        bits = geometry.object_bits(x, y, h, self._p)
+        run = self._runs[i]
+        bits = run.object_bits(x, y, h)
         for j, (ox, oy, _) in enumerate(self._poses):
             if j != i:
-                bits |= geometry.disc_bits(x, y, h, ox, oy, self._radius, self._p)
+                bits |= geometry.disc_bits_within(x, y, h, ox, oy, self._radius, run.reach, self._p)
         return bool(bits & OBJECT_LEFT), bool(bits & OBJECT_RIGHT)
 
     def light_sensors(self, i: int) -> tuple[bool, bool]:

@@ -31,6 +31,7 @@ from evolve.anytime import (
     section_keys,
     table_error,
 )
+from evolve.envelope import DEFAULT, NONE
 from evolve.population import PopulationRun
 from evolve.settings import GASettings, WorldSettings
 from evolve.table import PAPER_TABLE, load_table
@@ -191,10 +192,10 @@ class FakePhysics:
         return runs
 
 
-def _evolve(folder, method="bias", *, ga=GA, resume=False, tester=None, **kw):
+def _evolve(folder, method="bias", *, ga=GA, resume=False, tester=None, envelope=NONE, **kw):
     settings = AnytimeSettings(method=method, every=2, top=2, physics_starts=2, physics_steps=30,
                                min_samples=1)  # fmt: skip
-    stage = dataclasses.replace(STAGE, extra_settings=(settings,))
+    stage = dataclasses.replace(STAGE, extra_settings=(settings,), envelope=envelope)
     return evolve_anytime(
         folder, stage=stage, table=TABLE, ga=ga, world=WORLD, settings=settings,
         test_in_physics=tester or FakePhysics(), settings_text="tiny", resume=resume, **kw,
@@ -259,6 +260,26 @@ def test_resume_replays_its_punctuations_without_physics(tmp_path):
     assert len(tester.calls) == 1  # generation 20 only (16 and 18 are on file)
     assert _files(tmp_path / "ref") == _files(tmp_path / "cut")
     assert _no_walls(ref.records) == _no_walls(cut.records)
+
+
+@pytest.mark.parametrize("method", ["bias", "model"])
+def test_anytime_in_an_envelope_resumes_bit_for_bit(tmp_path, method):
+    """Evolved in the envelope default (SPEC §9): the punctuations' table runs and the model's
+    re-evaluations are keyed draws, so a resumed run replays to the same files; and the
+    envelope changes what is learned."""
+    ref = _evolve(tmp_path / "ref", method, envelope=DEFAULT)
+
+    def kill_at(rec):
+        if rec["population"] == 1 and rec["generation"] == 18:
+            raise Interrupt
+
+    with pytest.raises(Interrupt):
+        _evolve(tmp_path / "cut", method, envelope=DEFAULT, on_generation=kill_at)
+    cut = _evolve(tmp_path / "cut", method, envelope=DEFAULT, resume=True)
+    assert _files(tmp_path / "ref") == _files(tmp_path / "cut")
+    assert _no_walls(ref.records) == _no_walls(cut.records)
+    plain = _evolve(tmp_path / "plain", method)
+    assert [r.history.tolist() for r in ref.results] != [r.history.tolist() for r in plain.results]
 
 
 def test_resume_with_populations_at_different_checkpoints(tmp_path, monkeypatch):

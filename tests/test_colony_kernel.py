@@ -12,6 +12,7 @@ from chromosome_text import LIGHT_FOLLOWER
 
 from evolve import evaluate, evaluate_colony
 from evolve.codec import parse_chromosome
+from evolve.envelope import NONE, Envelope
 from evolve.ga import next_generation, random_sections
 from evolve.interpreter import END_BRANCH_LIMIT, END_KILL_ZONE, END_POWER_EMPTY, run_colony
 from evolve.settings import ColonySettings, GASettings, WorldSettings, with_table_power
@@ -34,17 +35,20 @@ def _robot_values(res, field):
 
 
 def assert_colony_kernel_equals_interpreter(
-    genomes, starts, *, mode="coverage", table=PAPER_TABLE, world=WORLD, colony=COLONY, **kw
-):
-    """Compare every (individual, colony start) run, robot by robot; returns the evaluation."""
+    genomes, starts, *, mode="coverage", table=PAPER_TABLE, world=WORLD, colony=COLONY,
+    envelope=NONE, envelope_key=(0, 0), **kw,
+):  # fmt: skip
+    """Compare every (individual, colony start) run, robot by robot, in ``envelope``; returns
+    the evaluation."""
+    env = dict(envelope=envelope, envelope_key=envelope_key)
     ev = evaluate_colony(
-        genomes, starts, table=table, mode=mode, settings=world, colony=colony, **kw
+        genomes, starts, table=table, mode=mode, settings=world, colony=colony, **env, **kw
     )
     for i in range(genomes.shape[0]):
         for s in range(starts.shape[0]):
             res = run_colony(
-                genomes[i], TableColony(table, starts[s], world, colony), mode=mode,
-                settings=world, colony=colony, **kw,
+                genomes[i], TableColony(table, starts[s], world, colony, start=s, **env),
+                mode=mode, settings=world, colony=colony, **kw,
             )  # fmt: skip
             got = (ev.squares[i, s], ev.inner_squares[i, s], ev.colony_steps[i, s])
             want = (res.squares, res.inner_squares, res.colony_steps)
@@ -83,6 +87,21 @@ def test_colonies_meeting_at_the_station_match():
         genomes[:120], starts, world=wide, colony=long, start_power=3.95
     )
     assert ev.station_waits.sum() > 100 and (ev.station_waits.sum(axis=2) > 0).sum() > 30
+
+
+def test_colonies_meeting_at_the_station_match_in_an_envelope():
+    """As above in an envelope of variation (SPEC §9) with every aspect on, the station block
+    always there and stopping: robots dock, wait, bump into each other and into the block."""
+    rng = np.random.default_rng(27)
+    genomes = rng.integers(0, 2, size=(120, 16, 30), dtype=np.uint8)
+    genomes[:, 0, :9] = [0, 0, 1, 1, 0, 0, 0, 0, 0]  # gene 0 ×∞, first: if low-power goto 8
+    starts = colony_starts(rng, 3, NEAR_STATION, COLONY)
+    envelope = Envelope(scatter_scale=1.0, bias_scale=1.0, station_seen_p=1.0, reach_units=8.0,
+                        station_stops=True)  # fmt: skip
+    ev = assert_colony_kernel_equals_interpreter(
+        genomes, starts, start_power=3.95, envelope=envelope, envelope_key=(2, 9)
+    )
+    assert ev.docks.sum() > 20 and ev.collisions.sum() > 100
 
 
 def test_other_colony_sizes_settings_and_navigation_mode_match():

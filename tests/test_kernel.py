@@ -10,6 +10,7 @@ import pytest
 from chromosome_text import STILL, B, G, chrom, gene
 
 from evolve import evaluate
+from evolve.envelope import NONE, Envelope
 from evolve.geometry import apply_gait
 from evolve.interpreter import (
     END_BRANCH_LIMIT,
@@ -36,13 +37,15 @@ def starts_in(rng, n, lo, hi) -> np.ndarray:
 
 
 def assert_kernel_equals_interpreter(
-    genomes, starts, *, mode, table=PAPER_TABLE, settings=DEFAULT_WORLD, **kw
-):
-    """Compare every (individual, start) run; returns the Evaluation."""
-    ev = evaluate(genomes, starts, table=table, mode=mode, settings=settings, **kw)
+    genomes, starts, *, mode, table=PAPER_TABLE, settings=DEFAULT_WORLD, envelope=NONE,
+    envelope_key=(0, 0), **kw,
+):  # fmt: skip
+    """Compare every (individual, start) run, in ``envelope``; returns the Evaluation."""
+    env = dict(envelope=envelope, envelope_key=envelope_key)
+    ev = evaluate(genomes, starts, table=table, mode=mode, settings=settings, **env, **kw)
     for i in range(genomes.shape[0]):
         for s in range(starts.shape[0]):
-            world = TableWorld(table, *starts[s], settings)
+            world = TableWorld(table, *starts[s], settings, start=s, **env)
             r = run(genomes[i], world, mode=mode, settings=settings, **kw)
             got = (ev.squares[i, s], ev.inner_squares[i, s], ev.steps[i, s], ev.docks[i, s])
             want = (r.squares, r.inner_squares, r.steps, r.docks)
@@ -119,6 +122,23 @@ def test_hand_worked_cases_match(case: int) -> None:
         start_power=power, max_steps=max_steps,
     )  # fmt: skip
     assert ev.end[0, 0] == end
+
+
+EVERY_ASPECT = Envelope(
+    scatter_scale=1.5, bias_scale=1.0, station_seen_p=1.0, reach_units=5.0, station_stops=True
+)
+"""An envelope of variation (SPEC §9) with every aspect on, the station block always there."""
+
+
+@pytest.mark.parametrize("case", range(len(HAND_CASES)))
+def test_hand_worked_cases_match_in_an_envelope(case: int) -> None:
+    """The same cases varied (scatter, bias, reach, a station block that stops): the kernel
+    still equals the interpreter, from several start indices (different draws)."""
+    bits, pose, mode, table, power, max_steps, _ = HAND_CASES[case]
+    assert_kernel_equals_interpreter(
+        bits[None], np.array([pose] * 4, dtype=float), mode=mode, table=table,
+        start_power=power, max_steps=max_steps, envelope=EVERY_ASPECT, envelope_key=(1, case),
+    )  # fmt: skip
 
 
 def test_docking_case_values() -> None:

@@ -1,0 +1,219 @@
+"""The envelope of variation of the table world (SPEC §9, "Learning across the reality gap").
+
+The table world of §2–§5 is exact; the robot is not. An ``Envelope`` makes the table world
+vary the way the robot may (after Jakobi, Husbands & Harvey 1995; Jakobi 1997; Tobin et al.
+2017), so that evolution prefers controllers that work across the variation. Four aspects,
+each with its own scale; a scale of 0 turns it off, and ``NONE`` (every scale 0) is the world
+of §3 bit for bit:
+
+1. cycle scatter: each executed gait cycle moves by its row plus (σ_F z₁, σ_T z₂, σ_ΔH z₃) ×
+   ``scatter_scale``, z standard normal;
+2. robot bias: at a run's start each gait's row is offset by N(0, (``bias_scale`` × σ)²) per
+   column, held for the run;
+3. station seen: with probability ``station_seen_p`` a run's station is a block
+   (``station_block``) that the object sensors see, and with ``station_stops`` also a
+   barrier;
+4. sensor reach: the object sensors' activation distance is drawn per run uniformly in
+   [range − ``reach_units``, range + ``reach_units``] (range = ``WorldSettings.object_range``).
+
+σ (``envelope_sigma``) is a gait table's per-gait per-cycle standard deviation (``F_std``,
+``T_std``, ``dH_std`` of a calibration file); the paper's table, which has none, borrows the
+shipped robot's (``SHIPPED_STD``, a data file: ``evolve`` imports no physics).
+
+Where the draws come from (counter-based, ``evolve.draws``) and how a run uses them
+(``evolve.variation``) are the other two modules of the envelope. Keys: a stage's training
+runs use ``(seed, generation)``; its tests ``key_of_test(seed, test)``, which no generation
+meets.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evolve.settings import ColonySettings, WorldSettings
+from evolve.table import COLUMNS, N_GAITS, GaitTable
+from infra.errors import InputError
+from infra.io import read_json
+
+SHIPPED_STD = Path(__file__).parent / "data" / "shipped_std.json"
+"""Per-cycle standard deviations (F_std, T_std cm; dH_std deg) of the shipped ServoBot's 16
+gaits, from its default calibration (the file records the command)."""
+STATION_DEPTH = 20.0
+"""Depth of the station block in front of the east wall, units: the MuJoCo station protrudes
+0.20 m (SPEC §3 "In MuJoCo"). Its width and centre are ``WorldSettings.station_width`` and
+``station_y``."""
+ROBOT_RADIUS = ColonySettings().disc_radius
+"""A lone robot's footprint against the station block (``station_stops``), units: the
+colony's disc (SPEC §7). A colony uses its own ``ColonySettings.disc_radius``."""
+STD_KEYS = tuple(f"{c}_std" for c in COLUMNS)
+"""Columns of a gait table's per-cycle spread: F_std, T_std, dH_std."""
+TEST_IDS = {"figure9": 0, "selection": 1, "docking": 2, "colony_final": 3, "punctuation": 4}
+"""Id of each test whose runs an envelope varies: key ``key_of_test(seed, test, ...)``."""
+
+
+class EnvelopeError(InputError, ValueError):
+    """An envelope that cannot be used (bad field, bad file, a table without σ); the message
+    names the field or file."""
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """How the table world varies (SPEC §9). Every field 0 (False): the world of §3."""
+
+    scatter_scale: float = 0.0
+    """Cycle scatter, × σ per executed gait cycle: each cycle's row gets σ z × this, z ~ N(0, 1)
+    per column, drawn anew every cycle (dimensionless)."""
+    bias_scale: float = 0.0
+    """Robot bias, × σ per run, per gait, per column: each row is offset by σ z × this, z ~
+    N(0, 1) drawn once per run and held for it (dimensionless)."""
+    station_seen_p: float = 0.0
+    """Probability (0–1) that a run's station is the block ``station_block`` (x ≥ 480,
+    |y − 250| ≤ 30 in the SPEC's world) that the object sensors see; drawn once per run, for
+    every robot of a colony alike."""
+    reach_units: float = 0.0
+    """Sensor reach, units: each robot's object-sensor activation distance is drawn per run
+    uniformly in [object_range − this, object_range + this] (walls, robots and the block)."""
+    station_stops: bool = False
+    """[chosen] Whether a seen station block also stops motion: a move that would bring the
+    centre closer than the robot radius to the block (and closer than before) is cancelled;
+    the step still counts and costs power, as a colony's cancelled move. False until measured
+    against physics."""
+
+    def __post_init__(self) -> None:
+        for name in ("scatter_scale", "bias_scale", "station_seen_p", "reach_units"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise EnvelopeError(f"{name} must be a finite number, got {v!r}")
+            if v < 0.0:
+                raise EnvelopeError(f"{name} must be ≥ 0, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if self.station_seen_p > 1.0:
+            raise EnvelopeError(f"station_seen_p must be a probability in [0, 1], got "
+                                f"{self.station_seen_p!r}")  # fmt: skip
+        if not isinstance(self.station_stops, bool):
+            raise EnvelopeError(f"station_stops must be true or false, got {self.station_stops!r}")
+
+    @property
+    def varies_motion(self) -> bool:
+        """Whether gait rows vary (scatter or bias): σ is needed."""
+        return self.scatter_scale > 0.0 or self.bias_scale > 0.0
+
+    @property
+    def varies(self) -> bool:
+        """Whether any aspect is on (else the world of §3)."""
+        return self != NONE
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def to_json(self) -> str:
+        """The envelope as a JSON object of its fields (what ``load_envelope`` reads)."""
+        return json.dumps(self.to_dict(), indent=2)
+
+    @classmethod
+    def from_dict(cls, doc: Any, *, name: str = "envelope") -> Envelope:
+        """An envelope from a JSON object of its fields (a missing field is 0 / false);
+        ``EnvelopeError`` naming ``name`` and the field for an unknown key or a bad value."""
+        if not isinstance(doc, dict):
+            raise EnvelopeError(f"{name}: an envelope is a JSON object of its fields, got "
+                                f"{type(doc).__name__}")  # fmt: skip
+        fields = [f.name for f in dataclasses.fields(cls)]
+        unknown = sorted(set(doc) - set(fields))
+        if unknown:
+            raise EnvelopeError(f"{name}: unknown field {unknown[0]!r} (fields: "
+                                f"{', '.join(fields)})")  # fmt: skip
+        try:
+            return cls(**doc)
+        except EnvelopeError as exc:
+            raise EnvelopeError(f"{name}: {exc}") from exc
+
+
+NONE = Envelope()
+"""The world of §3: no variation."""
+DEFAULT = Envelope(
+    scatter_scale=1.0, bias_scale=0.0, station_seen_p=0.5, reach_units=5.0, station_stops=False
+)
+"""The envelope ``default``: the one place where the project's chosen envelope is tuned."""
+NAMED = {"none": NONE, "default": DEFAULT}
+"""Envelopes known by name (``load_envelope``)."""
+
+
+def load_envelope(spec: str | Path) -> Envelope:
+    """``none``, ``default`` (``NAMED``) or a JSON file of the envelope's fields."""
+    if str(spec) in NAMED:
+        return NAMED[str(spec)]
+    doc = read_json(spec, what="envelope file", error=EnvelopeError)
+    return Envelope.from_dict(doc, name=str(spec))
+
+
+@functools.lru_cache(maxsize=1)
+def shipped_std() -> np.ndarray:
+    """(16, 3) per-cycle std (F_std, T_std cm; dH_std deg) of the shipped robot (read-only)."""
+    doc = read_json(SHIPPED_STD, what="shipped std file", error=EnvelopeError)
+    out = np.full((N_GAITS, 3), math.nan)
+    for row in doc["gaits"]:
+        out[row["gait"]] = [row[k] for k in STD_KEYS]
+    out.setflags(write=False)
+    return out
+
+
+def envelope_sigma(envelope: Envelope, table: Any) -> np.ndarray:
+    """σ of ``table`` for ``envelope``, (16, 3): a ``GaitTable``'s ``std``, or the shipped
+    robot's for a table without one (the paper's, or a bare array); zeros when the envelope
+    varies no row. ``EnvelopeError`` naming the table when its std is not finite ≥ 0 (a
+    calibration file without ``_std`` columns)."""
+    if not envelope.varies_motion:
+        return np.zeros((N_GAITS, 3))
+    std = table.std if isinstance(table, GaitTable) else None
+    if std is None:
+        return np.array(shipped_std())
+    std = np.asarray(std, dtype=np.float64)
+    bad = sorted({int(g) for g in np.argwhere(~(np.isfinite(std) & (std >= 0.0)))[:, 0]})
+    if std.shape != (N_GAITS, 3) or bad:
+        name = table.source
+        raise EnvelopeError(
+            f"{name}: the envelope's scatter and bias need the table's per-cycle std "
+            f"({', '.join(STD_KEYS)}) of every gait; gaits {bad} have none (a calibration by "
+            "servobot calibrate measures them)"
+        )
+    return np.ascontiguousarray(std)
+
+
+def station_block(world: WorldSettings) -> tuple[float, float, float, float]:
+    """(x0, y0, x1, y1), units: the station block, ``STATION_DEPTH`` deep in front of the east
+    wall over the station's width (x ≥ 480, |y − 250| ≤ 30 in the SPEC's world)."""
+    half = 0.5 * world.station_width
+    size = world.arena_size
+    return (size - STATION_DEPTH, world.station_y - half, size, world.station_y + half)
+
+
+def key_of_test(seed: int, test: str, *index: int) -> tuple[int, ...]:
+    """The key of a test's draws: (seed, −1 − its ``TEST_IDS`` id, *index) — negative, so no
+    generation (≥ 0) of the stage meets them."""
+    return (int(seed), -1 - TEST_IDS[test], *(int(i) for i in index))
+
+
+__all__ = [
+    "DEFAULT",
+    "NAMED",
+    "NONE",
+    "ROBOT_RADIUS",
+    "SHIPPED_STD",
+    "STATION_DEPTH",
+    "TEST_IDS",
+    "Envelope",
+    "EnvelopeError",
+    "envelope_sigma",
+    "load_envelope",
+    "shipped_std",
+    "key_of_test",
+    "station_block",
+]

@@ -1,0 +1,542 @@
+"""The envelope of variation (SPEC §9): ``none`` is the world of §3 bit for bit, the kernels
+equal the interpreter with every aspect on, the draws are keyed as the SPEC says, each aspect
+does what it claims (hand-worked scatter, the block seen at 49 and not 51 units, scatter and
+bias statistics, bias held for a run, the block stopping a move), the stages report both
+worlds and resume bit for bit, and bad inputs are refused by name."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+from chromosome_text import LIGHT_FOLLOWER, B, G, chrom, gene
+from envelope_workload import (
+    COLONY,
+    EXPECTED,
+    LONE_FIELDS,
+    START_POWER,
+    WORLD,
+    results,
+    workload,
+)
+from run_folder import result_files
+
+from evolve import evaluate, evaluate_colony, stages
+from evolve.codec import OBJECT_LEFT, OBJECT_RIGHT, parse_chromosome
+from evolve.colony_stage import run_colony_stage
+from evolve.draws import MASK64, absorb, fold, mix64, normal3, unit
+from evolve.envelope import (
+    DEFAULT,
+    NONE,
+    SHIPPED_STD,
+    Envelope,
+    EnvelopeError,
+    envelope_sigma,
+    key_of_test,
+    load_envelope,
+    shipped_std,
+    station_block,
+)
+from evolve.geometry import block_bits, pack_world, wrap180
+from evolve.interpreter import END_KILL_ZONE, END_POWER_EMPTY, run, run_colony
+from evolve.settings import ColonySettings, GASettings
+from evolve.table import PAPER_TABLE, load_table, table_to_json
+from evolve.variation import STREAM_SCATTER, Variation, scattered_row
+from evolve.world import TableColony, TableWorld
+from infra.rundir import RunDirError
+
+EVERYTHING = Envelope(
+    scatter_scale=1.0, bias_scale=1.0, station_seen_p=0.5, reach_units=5.0, station_stops=True
+)
+"""Every aspect on, the station block stopping motion."""
+LOUD = Envelope(scatter_scale=2.5, bias_scale=1.5, station_seen_p=0.8, reach_units=12.0)
+"""Larger scales, a block that is only seen."""
+KEY = (7, 3)
+SCATTER_ONLY = Envelope(scatter_scale=1.0)
+BIAS_ONLY = Envelope(bias_scale=1.0)
+BLOCK_ONLY = Envelope(station_seen_p=1.0)
+STOPS_ONLY = Envelope(station_seen_p=1.0, station_stops=True)
+OBJECT_BOTH_THEN_BACK = chrom(
+    gene("00", B(3, 1), G(7), G(7), G(7)), gene("00", G(15), G(15), G(15), G(15))
+)
+"""Gene 0: if both object sensors are active go to gene 1 (walk backwards), else stand still."""
+
+
+@pytest.fixture(scope="module")
+def work():
+    return workload()
+
+
+def _lone_interpreted(genomes, starts, mode, **kw):
+    """The interpreter's (squares, inner, steps, docks, end, final pose) per run, (P, S)."""
+    env = {k: kw.pop(k) for k in ("envelope", "envelope_key") if k in kw}
+    out = {f: np.zeros(genomes.shape[:1] + starts.shape[:1], dtype=object) for f in LONE_FIELDS}
+    collisions = 0
+    for i in range(genomes.shape[0]):
+        for s in range(starts.shape[0]):
+            r = run(genomes[i], TableWorld(PAPER_TABLE, *starts[s], start=s, **env), mode=mode,
+                    **kw)  # fmt: skip
+            vals = (r.squares, r.inner_squares, r.steps, r.docks, r.end, r.final_pose)
+            for f, v in zip(LONE_FIELDS, vals, strict=True):
+                out[f][i, s] = v
+            collisions += r.collisions
+    return out, collisions
+
+
+def _assert_lone_equal(ev, ref, rows=slice(None)):
+    for f in LONE_FIELDS[:-1]:
+        np.testing.assert_array_equal(np.asarray(getattr(ev, f))[rows], ref[f].astype(np.int64),
+                                      err_msg=f)  # fmt: skip
+    poses = np.array(ref["final_pose"].tolist(), dtype=float)
+    np.testing.assert_array_equal(ev.final_pose[rows], poses, err_msg="final_pose")
+
+
+def _colony_interpreted(genomes, starts, ev, **kw):
+    """Compare ``ev`` with ``run_colony`` run by run, robot by robot; block collisions."""
+    env = {k: kw.pop(k) for k in ("envelope", "envelope_key") if k in kw}
+    for i in range(genomes.shape[0]):
+        for s in range(starts.shape[0]):
+            world = TableColony(PAPER_TABLE, starts[s], None, COLONY, start=s, **env)
+            res = run_colony(genomes[i], world, colony=COLONY, **kw)
+            got = (ev.squares[i, s], ev.inner_squares[i, s], ev.colony_steps[i, s],
+                   ev.steps[i, s].tolist(), ev.docks[i, s].tolist(), ev.end[i, s].tolist(),
+                   ev.collisions[i, s].tolist(), ev.station_waits[i, s].tolist(),
+                   ev.final_pose[i, s].tolist())  # fmt: skip
+            want = (res.squares, res.inner_squares, res.colony_steps,
+                    [r.steps for r in res.robots], [r.docks for r in res.robots],
+                    [r.end for r in res.robots], [r.collisions for r in res.robots],
+                    [r.station_waits for r in res.robots],
+                    [list(r.final_pose) for r in res.robots])  # fmt: skip
+            assert got == want, (i, s)
+
+
+# --------------------------------------------------------------------------- none = §3
+
+
+def test_none_is_the_stored_pre_envelope_world_bit_for_bit_in_the_kernels(work):
+    """4000 runs (lone coverage near and far from the station, navigation, colonies of 3) equal
+    the results the code computed before envelopes existed; with NONE given explicitly, by
+    default, and whatever the key."""
+    expected = np.load(EXPECTED)
+    for kw in ({}, {"envelope": NONE}, {"envelope": NONE, "envelope_key": (99, -5, 3)}):
+        got = results(work, **kw)
+        assert set(got) == set(expected.files)
+        for name in expected.files:
+            if name.endswith("final_pose"):
+                np.testing.assert_allclose(got[name], expected[name], rtol=0, atol=1e-9)
+            else:
+                np.testing.assert_array_equal(got[name], expected[name], err_msg=name)
+
+
+def test_none_is_the_stored_pre_envelope_world_in_the_interpreter(work):
+    expected = np.load(EXPECTED)
+    lone, _ = _lone_interpreted(work.coverage, work.coverage_starts, "coverage",
+                                start_power=START_POWER, envelope=NONE)  # fmt: skip
+    nav, _ = _lone_interpreted(work.navigation, work.navigation_starts, "navigation")
+    for prefix, ref in (("coverage", lone), ("navigation", nav)):
+        for f in LONE_FIELDS[:-1]:
+            np.testing.assert_array_equal(ref[f].astype(np.int64), expected[f"{prefix}_{f}"])
+        poses = np.array(ref["final_pose"].tolist(), dtype=float)
+        np.testing.assert_allclose(poses, expected[f"{prefix}_final_pose"], rtol=0, atol=1e-9)
+    assert expected["coverage_docks"].sum() > 100  # the sample docks and backs up often
+
+
+# --------------------------------------------------------------------------- kernel = interpreter
+
+
+@pytest.mark.parametrize("envelope", [EVERYTHING, LOUD], ids=["everything", "loud"])
+def test_lone_kernel_equals_interpreter_in_an_envelope(work, envelope):
+    g, st = work.coverage[:300], work.coverage_starts
+    ev = evaluate(g, st, table=PAPER_TABLE, mode="coverage", start_power=START_POWER,
+                  envelope=envelope, envelope_key=KEY)  # fmt: skip
+    ref, blocked = _lone_interpreted(g, st, "coverage", start_power=START_POWER,
+                                     envelope=envelope, envelope_key=KEY)  # fmt: skip
+    _assert_lone_equal(ev, ref)
+    assert ev.docks.sum() > 20
+    assert (blocked > 100) == envelope.station_stops  # the block stops moves only if it stops
+    nav = work.navigation[:400]
+    ev = evaluate(nav, work.navigation_starts, table=PAPER_TABLE, mode="navigation",
+                  envelope=envelope, envelope_key=KEY)  # fmt: skip
+    ref, _ = _lone_interpreted(nav, work.navigation_starts, "navigation", envelope=envelope,
+                               envelope_key=KEY)  # fmt: skip
+    _assert_lone_equal(ev, ref)
+    assert set(np.unique(ev.end).tolist()) == {0, 1, 2, 3, 4}
+
+
+@pytest.mark.parametrize("envelope", [EVERYTHING, LOUD], ids=["everything", "loud"])
+def test_colony_kernel_equals_interpreter_in_an_envelope(work, envelope):
+    g, st = work.colony[:120], work.colony_starts
+    ev = evaluate_colony(g, st, table=PAPER_TABLE, mode="coverage", start_power=START_POWER,
+                         colony=COLONY, envelope=envelope, envelope_key=KEY)  # fmt: skip
+    _colony_interpreted(g, st, ev, start_power=START_POWER, envelope=envelope, envelope_key=KEY)
+    assert ev.collisions.sum() > 100 and ev.docks.sum() > 5
+
+
+def test_one_robot_colony_equals_the_lone_kernel_in_an_envelope(work):
+    one = ColonySettings(robots=1)
+    starts = work.colony_starts[:, :1]
+    kw = dict(table=PAPER_TABLE, mode="coverage", start_power=START_POWER, envelope=EVERYTHING,
+              envelope_key=KEY)  # fmt: skip
+    col = evaluate_colony(work.coverage, starts, colony=one, **kw)
+    lone = evaluate(work.coverage, starts[:, 0], **kw)
+    for f in ("steps", "docks", "end", "final_pose"):
+        np.testing.assert_array_equal(getattr(col, f)[:, :, 0], getattr(lone, f), err_msg=f)
+    np.testing.assert_array_equal(col.squares, lone.squares)
+
+
+# --------------------------------------------------------------------------- keys
+
+
+def test_draws_are_shared_by_individuals_and_differ_between_starts_and_generations():
+    rng = np.random.default_rng(31)
+    pop = rng.integers(0, 2, size=(40, 16, 30), dtype=np.uint8)
+    pop[::4] = pop[0]  # ten copies of one genome, among others
+    start = np.array([[400.0, 250.0, 30.0]])
+    starts = np.repeat(start, 3, axis=0)  # one pose at three start indices
+    kw = dict(table=PAPER_TABLE, mode="coverage", envelope=LOUD)
+    ev = evaluate(pop, starts, envelope_key=(5, 0), **kw)
+    # every copy, wherever it stands in the population, meets the same draws at each start
+    for f in LONE_FIELDS:
+        a = np.asarray(getattr(ev, f))
+        assert (a[::4] == a[0]).all(), f
+    alone = evaluate(pop[:1], starts, envelope_key=(5, 0), **kw)
+    np.testing.assert_array_equal(alone.final_pose[0], ev.final_pose[0])
+    # the same pose at another start index, or in another generation, meets other draws
+    poses = ev.final_pose[0]
+    assert len({tuple(p) for p in poses}) == 3
+    other = evaluate(pop[:1], starts, envelope_key=(5, 1), **kw).final_pose[0]
+    assert not (other == poses).all(axis=1).any()
+    again = evaluate(pop[:1], starts, envelope_key=(5, 0), **kw).final_pose[0]
+    np.testing.assert_array_equal(again, poses)  # and a run repeats alone
+
+
+def test_the_counter_hash_is_splitmix64_with_uint64_wraparound():
+    # splitmix64's first output from seed 0 (Vigna's reference implementation)
+    assert mix64(0x9E3779B97F4A7C15) == 0xE220A8397B1DCDAF
+    rng = np.random.default_rng(0)
+    words = rng.integers(0, 2**63, size=200, dtype=np.uint64) * np.uint64(2) + np.uint64(1)
+    with np.errstate(over="ignore"):
+        for z in words:
+            a = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+            b = (a ^ (a >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+            assert mix64(int(z)) == int(b ^ (b >> np.uint64(31)))
+    assert all(0 <= absorb(h, -1) <= MASK64 for h in (0, MASK64))  # negative words wrap
+    assert len({fold((3, g)) for g in range(1000)} | {fold(key_of_test(3, "figure9"))}) == 1001
+    assert 0.0 <= unit(0) < unit(MASK64) < 1.0
+
+
+def test_test_keys_never_meet_a_generation():
+    for test in ("figure9", "selection", "docking", "colony_final", "punctuation"):
+        key = key_of_test(4, test)
+        assert key[0] == 4 and key[1] < 0
+    assert key_of_test(4, "punctuation", 32) == (4, -5, 32)
+
+
+# --------------------------------------------------------------------------- aspects
+
+
+def test_hand_worked_scatter_of_one_cycle():
+    """Gait 0 once from (250, 250) facing north: the pose is the row plus σ·z, z the cycle's
+    draw computed here from the key by hand."""
+    start, pose = 2, (250.0, 250.0, 0.0)
+    key = absorb(absorb(absorb(fold(KEY), start), 0), STREAM_SCATTER)
+    z = normal3(absorb(key, 0), 0)  # cycle 0
+    sigma = shipped_std()
+    f, t, dh = (PAPER_TABLE[0, c] + 1.0 * sigma[0, c] * z[c] for c in range(3))
+    # facing north (h = 0): x += T, y += F, h = dH mod 360
+    want = (250.0 + t, 250.0 + f, dh % 360.0)
+    assert abs(f - PAPER_TABLE[0, 0]) > 1e-3 and want[2] > 300.0  # a real draw, a left turn
+    world = TableWorld(PAPER_TABLE, *pose, envelope=SCATTER_ONLY, envelope_key=KEY, start=start)
+    world.step(0)
+    np.testing.assert_allclose(world.pose(), want, rtol=0, atol=1e-12)
+    walk = chrom(gene("00", G(0), G(0), G(0), G(0)))
+    starts = np.array([(300.0, 300.0, 0.0)] * start + [pose])
+    ev = evaluate(walk[None], starts, table=PAPER_TABLE, mode="coverage", max_steps=1,
+                  envelope=SCATTER_ONLY, envelope_key=KEY)  # fmt: skip
+    np.testing.assert_allclose(ev.final_pose[0, start], want, rtol=0, atol=1e-12)
+
+
+def test_station_block_seen_at_49_units_not_51():
+    x0 = station_block(WORLD)[0]
+    assert (x0, station_block(WORLD)[1:]) == (480.0, (220.0, 500.0, 280.0))
+    for dist, seen in ((49.0, True), (51.0, False)):
+        pose = (x0 - dist, 250.0, 90.0)
+        world = TableWorld(PAPER_TABLE, *pose, envelope=BLOCK_ONLY)
+        assert world.object_sensors() == (seen, seen)
+        assert TableWorld(PAPER_TABLE, *pose).object_sensors() == (False, False)  # no block
+        # the kernel: both object sensors active → gene 1 walks backwards
+        ev = evaluate(OBJECT_BOTH_THEN_BACK[None], np.array([pose]), table=PAPER_TABLE,
+                      mode="coverage", max_steps=1, envelope=BLOCK_ONLY)  # fmt: skip
+        moved = ev.final_pose[0, 0, 0] != pose[0]
+        assert moved == seen
+
+
+def test_block_sensing_agrees_with_a_dense_sampling_of_the_block():
+    """``block_bits`` against brute force: every point of the block's outline at 0.01 units,
+    with a margin of 0.05 units and 0.1° for the sampling."""
+    p = pack_world(WORLD)
+    x0, y0, x1, y1 = station_block(WORLD)
+    edge = np.arange(0.0, 1.0, 1e-4)
+    pts = np.concatenate([
+        np.column_stack([x0 + (x1 - x0) * edge, np.full_like(edge, y0)]),
+        np.column_stack([x0 + (x1 - x0) * edge, np.full_like(edge, y1)]),
+        np.column_stack([np.full_like(edge, x0), y0 + (y1 - y0) * edge]),
+        np.column_stack([np.full_like(edge, x1), y0 + (y1 - y0) * edge]),
+    ])  # fmt: skip
+    spans = (WORLD.object_left_span_deg, WORLD.object_right_span_deg)
+    rng = np.random.default_rng(41)
+    checked = 0
+    for _ in range(400):
+        x, y, h = rng.uniform(400, 479), rng.uniform(170, 330), rng.uniform(0, 360)
+        reach = rng.uniform(40, 60)
+        bits = block_bits(x, y, h, x0, y0, x1, y1, reach, p)
+        d = np.hypot(pts[:, 0] - x, pts[:, 1] - y)
+        rel = (np.degrees(np.arctan2(pts[:, 0] - x, pts[:, 1] - y)) - h + 180.0) % 360.0 - 180.0
+        for k, (a, b) in enumerate(spans):
+            inner = ((d <= reach - 0.05) & (rel >= a + 0.1) & (rel <= b - 0.1)).any()
+            outer = ((d <= reach + 0.05) & (rel >= a - 0.1) & (rel <= b + 0.1)).any()
+            active = bool(bits & (OBJECT_LEFT, OBJECT_RIGHT)[k])
+            assert (not inner or active) and (not active or outer), (x, y, h, reach, k)
+            checked += inner
+    assert checked > 50  # many poses do see it
+
+
+def test_reach_is_drawn_per_run_within_its_range():
+    var = Variation.of(Envelope(reach_units=5.0), PAPER_TABLE, WORLD, KEY, 15.0)
+    reach = np.array([var.robot(s, r).reach for s in range(500) for r in range(3)])
+    assert reach.min() >= 45.0 and reach.max() <= 55.0
+    assert reach.min() < 45.2 and reach.max() > 54.8 and abs(reach.mean() - 50.0) < 0.3
+    assert var.robot(3, 1).reach == var.robot(3, 1).reach != var.robot(3, 2).reach
+
+
+def test_station_is_seen_in_about_p_of_the_runs_and_by_every_robot_of_a_colony():
+    var = Variation.of(Envelope(station_seen_p=0.3), PAPER_TABLE, WORLD, KEY, 15.0)
+    seen = np.array([var.station_seen(s) for s in range(4000)])
+    assert abs(seen.mean() - 0.3) < 0.03
+    s = int(np.argmax(seen))
+    starts = np.array([[400.0, 200.0, 0.0], [400.0, 250.0, 90.0], [400.0, 300.0, 0.0]])
+    starts[:, 0] = station_block(WORLD)[0] - 40.0
+    colony = TableColony(PAPER_TABLE, starts, envelope=Envelope(station_seen_p=0.3),
+                         envelope_key=KEY, start=s)  # fmt: skip
+    assert colony.object_sensors(1) == (True, True)  # robot 1 faces the block 40 units away
+    plain = TableColony(PAPER_TABLE, starts, envelope=Envelope(station_seen_p=0.3),
+                        envelope_key=KEY, start=int(np.argmin(seen)))  # fmt: skip
+    assert plain.object_sensors(1) == (False, False)
+
+
+def test_cycle_scatter_mean_and_std_match_the_table_rows_and_sigma():
+    sigma = shipped_std()
+    n = 4000
+    for g in range(16):
+        rows = np.array([
+            scattered_row(*PAPER_TABLE[g], *sigma[g], 1.0, absorb(fold(KEY), g), c)
+            for c in range(n)
+        ])  # fmt: skip
+        for c in range(3):
+            if sigma[g, c] < 1e-6:  # gait 7 stands still: no spread
+                assert np.allclose(rows[:, c], PAPER_TABLE[g, c], atol=1e-6)
+                continue
+            assert abs(rows[:, c].mean() - PAPER_TABLE[g, c]) < 4.0 * sigma[g, c] / math.sqrt(n)
+            assert abs(rows[:, c].std() / sigma[g, c] - 1.0) < 0.06, (g, c)
+
+
+def test_bias_is_held_for_a_run_and_spread_as_sigma_over_runs():
+    world = TableWorld(PAPER_TABLE, 250.0, 100.0, 0.0, envelope=BIAS_ONLY, envelope_key=KEY)
+    moves = []
+    for _ in range(8):
+        x, y, h = world.pose()
+        world.step(9)
+        nx, ny, nh = world.pose()
+        r = math.radians(h)
+        dx, dy = nx - x, ny - y
+        moves.append((dx * math.sin(r) + dy * math.cos(r), dx * math.cos(r) - dy * math.sin(r),
+                      wrap180(nh - h)))  # fmt: skip
+    moves = np.array(moves)
+    np.testing.assert_allclose(moves, np.broadcast_to(moves[0], moves.shape), atol=1e-9)
+    assert np.abs(moves[0] - PAPER_TABLE[9]).min() > 1e-4  # every column biased
+    var = Variation.of(BIAS_ONLY, PAPER_TABLE, WORLD, KEY, 15.0)
+    np.testing.assert_allclose(moves[0], var.robot(0, 0).rows[9], atol=1e-9)
+    offsets = np.array([var.robot(s, 0).rows - PAPER_TABLE for s in range(3000)])
+    sigma = shipped_std()
+    ok = sigma > 1e-6
+    assert np.all(np.abs(offsets.mean(axis=0)[ok]) < 4.0 * sigma[ok] / math.sqrt(3000))
+    assert np.all(np.abs(offsets.std(axis=0)[ok] / sigma[ok] - 1.0) < 0.08)
+
+
+def test_station_stops_cancels_a_move_into_the_block():
+    pose = (460.0, 250.0, 90.0)  # gait 0 would bring the centre to 471.6: 8.4 from the block
+    world = TableWorld(PAPER_TABLE, *pose, envelope=STOPS_ONLY)
+    assert world.step(0) is True and world.pose() == pose
+    assert world.step(15) is False and world.pose()[0] < pose[0]  # backing away is allowed
+    seen_only = TableWorld(PAPER_TABLE, *pose, envelope=BLOCK_ONLY)
+    assert seen_only.step(0) is False and seen_only.pose()[0] > 470.0
+    # the step still counts and costs power, as a colony's cancelled move
+    walk = chrom(gene("00", G(0), G(0), G(0), G(0)))
+    r = run(walk, TableWorld(PAPER_TABLE, *pose, envelope=STOPS_ONLY), mode="coverage",
+            max_steps=3)  # fmt: skip
+    assert (r.steps, r.collisions, r.final_pose) == (3, 3, pose)
+    ev = evaluate(walk[None], np.array([pose]), table=PAPER_TABLE, mode="coverage", max_steps=3,
+                  start_power=2.75, envelope=STOPS_ONLY)  # fmt: skip
+    assert ev.steps[0, 0] == 3 and tuple(ev.final_pose[0, 0]) == pose
+    assert ev.end[0, 0] == END_POWER_EMPTY  # 3 × 0.0209 V spent standing at the block
+    plain = evaluate(walk[None], np.array([pose]), table=PAPER_TABLE, mode="coverage",
+                     max_steps=3, start_power=2.75)  # fmt: skip
+    assert (plain.end[0, 0], plain.steps[0, 0]) == (END_KILL_ZONE, 2)  # walked into the wall
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+def test_named_and_file_envelopes_load(tmp_path):
+    assert load_envelope("none") is NONE and load_envelope("default") is DEFAULT
+    path = tmp_path / "env.json"
+    path.write_text(json.dumps({"scatter_scale": 2, "station_stops": True}))
+    env = load_envelope(path)
+    assert env == Envelope(scatter_scale=2.0, station_stops=True)
+    assert Envelope.from_dict(json.loads(env.to_json())) == env
+    assert not NONE.varies and DEFAULT.varies and DEFAULT.scatter_scale == 1.0
+
+
+@pytest.mark.parametrize(
+    ("doc", "match"),
+    [
+        ({"scatter_scale": -1.0}, "scatter_scale must be ≥ 0"),
+        ({"bias_scale": "big"}, "bias_scale must be a finite number"),
+        ({"station_seen_p": 1.5}, "station_seen_p must be a probability"),
+        ({"reach_units": True}, "reach_units must be a finite number"),
+        ({"station_stops": 1}, "station_stops must be true or false"),
+        ({"scatter": 1.0}, "unknown field 'scatter'"),
+        ([1, 2], "a JSON object"),
+    ],
+)
+def test_bad_envelope_files_are_refused_by_field_and_file(tmp_path, doc, match):
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(EnvelopeError, match=match) as err:
+        load_envelope(path)
+    assert str(path) in str(err.value)
+
+
+def test_unreadable_envelope_files_and_bad_keys_are_refused(tmp_path):
+    with pytest.raises(EnvelopeError, match="missing.json"):
+        load_envelope(tmp_path / "missing.json")
+    (tmp_path / "nan.json").write_text('{"scatter_scale": NaN}')
+    with pytest.raises(EnvelopeError, match="nan.json"):
+        load_envelope(tmp_path / "nan.json")
+    far = Envelope(reach_units=60.0)
+    with pytest.raises(EnvelopeError, match="reach_units 60 exceeds"):
+        evaluate(np.zeros((1, 16, 30), np.uint8), np.array([[250.0, 250.0, 0.0]]),
+                 table=PAPER_TABLE, mode="coverage", envelope=far)  # fmt: skip
+    with pytest.raises(EnvelopeError, match="envelope_key"):
+        TableWorld(PAPER_TABLE, 250.0, 250.0, 0.0, envelope=DEFAULT, envelope_key=(1.5, 2))
+
+
+def test_a_table_without_std_is_refused_by_name(tmp_path):
+    path = tmp_path / "no_std.json"
+    path.write_text(json.dumps(table_to_json(PAPER_TABLE)))  # no F_std, T_std, dH_std
+    table = load_table(path)
+    with pytest.raises(EnvelopeError, match=r"no_std\.json: .*per-cycle std"):
+        envelope_sigma(SCATTER_ONLY, table)
+    bits = np.zeros((1, 16, 30), np.uint8)
+    with pytest.raises(EnvelopeError, match=r"no_std\.json"):
+        evaluate(bits, np.array([[250.0, 250.0, 0.0]]), table=table, mode="coverage",
+                 envelope=BIAS_ONLY)  # fmt: skip
+    with pytest.raises(EnvelopeError, match=r"no_std\.json"):
+        stages.run_coverage(tmp_path / "run", navigation=parse_chromosome(LIGHT_FOLLOWER),
+                            table=table, ga=GASettings(populations=1, population_size=4,
+                            generations=1, test_starts=2), envelope=DEFAULT)  # fmt: skip
+    assert not (tmp_path / "run").exists()  # refused before the folder was made
+    # without scatter or bias the table needs no σ; a table with σ uses its own
+    np.testing.assert_array_equal(envelope_sigma(BLOCK_ONLY, table), np.zeros((16, 3)))
+    with_std = tmp_path / "std.json"
+    with_std.write_text(json.dumps(table_to_json(PAPER_TABLE, np.full((16, 3), 0.5))))
+    np.testing.assert_array_equal(envelope_sigma(DEFAULT, load_table(with_std)), 0.5)
+
+
+@pytest.mark.slow
+def test_shipped_std_equals_a_fresh_calibration_of_the_shipped_robot():
+    """``evolve/data/shipped_std.json`` is what ``servobot calibrate`` measures today."""
+    from calibration.measure import CalibrationSettings, measure_all, summarise
+    from servo_mj.robot.model import model_sha256
+
+    doc = json.loads(SHIPPED_STD.read_text())
+    assert doc["model_sha256"] == model_sha256(), "the robot changed: recalibrate the file"
+    settings = CalibrationSettings()
+    assert doc["calibration"] == settings.to_dict()
+    _, std = summarise(measure_all(workers=2, **settings.measure_kwargs()))
+    np.testing.assert_allclose(shipped_std(), std[:, :3], rtol=1e-9, atol=1e-12)
+
+
+# --------------------------------------------------------------------------- stages
+
+
+TINY = GASettings(populations=2, population_size=10, generations=18, test_starts=12, seed=5)
+"""18 generations: checkpoints at 0 and 16, saves at 0, 1 and 18."""
+
+
+class Interrupt(Exception):
+    pass
+
+
+def _coverage(out, envelope=DEFAULT, **kw):
+    nav = parse_chromosome(LIGHT_FOLLOWER)
+    return stages.run_coverage(out, navigation=nav, table=load_table("paper"), ga=TINY,
+                               envelope=envelope, **kw)  # fmt: skip
+
+
+def test_coverage_stage_in_an_envelope_reports_both_worlds_and_resumes_bit_for_bit(tmp_path):
+    ref = _coverage(tmp_path / "ref")
+    folder = tmp_path / "ref/coverage"
+    settings = json.loads((folder / "settings.json").read_text())
+    assert settings["Envelope"] == DEFAULT.to_dict()
+    assert ref["envelope"] == DEFAULT.to_dict()
+    for key in ("figure9_mean_inner_percent", "final_mean_inner_percent", "final_inner_percent"):
+        assert f"envelope_{key}" in ref and key in ref
+    assert ref["envelope_figure9_inner_percent"] != ref["figure9_inner_percent"]
+    # the existing keys are the world of §3: the saved bests on the test starts without it
+    stage = stages.coverage_stage(WORLD, parse_chromosome(LIGHT_FOLLOWER))
+    test_seq, _ = stages.stage_seeds(TINY.seed, "coverage", TINY.populations)
+    starts = stage.starts(np.random.Generator(np.random.PCG64(test_seq)), TINY.test_starts,
+                          WORLD)  # fmt: skip
+    plain = stages.figure9_test(folder, stage, load_table("paper"), WORLD, (0, 1, 18), 2, starts)
+    np.testing.assert_array_equal(plain[0], ref["figure9_inner_percent"])
+    csv_head = (folder / "figure9.csv").read_text().splitlines()[0]
+    assert csv_head == "population,generation,inner_percent,envelope_inner_percent"
+    assert "envelope_mean_inner_percent" in json.loads((folder / "figure9.json").read_text())
+
+    def kill_at(info):
+        if info["population"] == 1 and info["generation"] == 17:
+            raise Interrupt
+
+    cut = tmp_path / "cut"
+    with pytest.raises(Interrupt):
+        _coverage(cut, on_generation=kill_at)
+    with pytest.raises(RunDirError, match="Envelope"):
+        _coverage(cut, envelope=LOUD, resume=True)  # another envelope is another run
+    _coverage(cut, resume=True)
+    assert result_files(tmp_path / "ref") == result_files(cut)
+
+
+def test_a_stage_without_an_envelope_writes_what_it_wrote_before(tmp_path):
+    summary = _coverage(tmp_path, envelope=NONE)
+    folder = tmp_path / "coverage"
+    assert "Envelope" not in json.loads((folder / "settings.json").read_text())
+    assert not any(k.startswith("envelope") for k in summary)
+    assert (folder / "figure9.csv").read_text().splitlines()[0] == (
+        "population,generation,inner_percent"
+    )
+
+
+def test_navigation_and_colony_stages_report_the_envelope_beside_the_plain_figures(tmp_path):
+    ga = dataclasses.replace(TINY, generations=4, save_generations=(0, 4))
+    nav = stages.run_navigation(tmp_path, table=load_table("paper"), ga=ga, envelope=LOUD)
+    for key in ("dock_success", "mean_steps_to_dock", "test_fitness"):
+        assert key in nav and f"envelope_{key}" in nav
+    assert all("envelope_dock_rate" in p for p in nav["populations"])
+    col = run_colony_stage(tmp_path, navigation=parse_chromosome(LIGHT_FOLLOWER),
+                           table=load_table("paper"), ga=ga, envelope=LOUD)  # fmt: skip
+    assert col["envelope"] == LOUD.to_dict()
+    assert len(col["envelope_final_inner_percent"]) == len(col["final_inner_percent"]) == 2
