@@ -4,6 +4,7 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
 
     servobot evolve navigation [--populations 5 --generations 1024 --population-size 256
                                 --seed 0 --table paper|PATH --power paper|table
+                                --envelope none|default|FILE.json
                                 --out runs/evolve --resume
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
@@ -36,7 +37,12 @@ from infra.bounds import check_int
 from infra.errors import InputError
 from infra.executors import Executor
 from infra.io import check_output_dir
-from servobot.cli.options import add_executor_option, executor_from_args
+from servobot.cli.options import (
+    add_envelope_option,
+    add_executor_option,
+    envelope_from_args,
+    executor_from_args,
+)
 from servobot.cli.runner import Interrupted, command_line, run_command
 from servobot.progress import GenerationBars
 
@@ -102,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="power model: 'paper' (0.0209 V per cycle, gait 7 free; default) or 'table' "
         "(each gait costs the dV measured in --table)",
     )
+    add_envelope_option(p)
     add_executor_option(
         p, "serial", "serial (one population after another: the kernel uses every core)"
     )
@@ -167,6 +174,8 @@ def _print_navigation(summary: dict[str, Any], out: Path) -> None:
         f"{summary['dock_success']:.0%} of {summary['test_starts']} fresh starts"
         + (f", mean {steps:.1f} steps to dock" if steps is not None else "")
     )
+    if "envelope_dock_success" in summary:
+        print(f"  in its envelope (same test starts): docked {summary['envelope_dock_success']:.0%}")
     for p in summary["populations"]:
         print(
             f"  population {p['population']} (final best): test fitness "
@@ -182,6 +191,11 @@ def _print_coverage(summary: dict[str, Any], out: Path) -> None:
         f"coverage: Figure 9 at generation {gen}: mean {summary['final_mean_inner_percent']:.1f}% "
         f"of the 64 inner squares (populations: {per})"
     )
+    if "envelope_final_mean_inner_percent" in summary:
+        print(
+            f"  in its envelope (same test starts): mean "
+            f"{summary['envelope_final_mean_inner_percent']:.1f}%"
+        )
     ho = summary["handoffs"]["all"]
     if ho["dock_rate"] is not None:
         print(
@@ -235,7 +249,8 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     world = with_power_model(WorldSettings(), args.power, table)
     check_output_dir(args.out, option="--out")
     kw = dict(table=table, ga=ga, world=world, resume=args.resume, force=args.force,
-              on_generation=bars, executor=executor(args))  # fmt: skip
+              on_generation=bars, executor=executor(args),
+              envelope=envelope_from_args(args))  # fmt: skip
     if args.stage == "navigation":
         if args.navigation is not None:
             raise CliError("--navigation is an option of the coverage and colony stages")

@@ -1,10 +1,12 @@
-"""The ``--executor`` option of the subcommands that run batches (``infra.executors``)."""
+"""Options shared by subcommands: ``--executor`` (``infra.executors``) for those that run
+batches, ``--envelope`` (``evolve.envelope``) for those that evolve."""
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
 
+from evolve.envelope import Envelope, load_envelope
 from infra.executors import (
     EXECUTOR_SPECS,
     Executor,
@@ -50,3 +52,20 @@ def executor_from_args(args: argparse.Namespace) -> Executor:
     if isinstance(ex, RayExecutor):
         ex.connect()
     return ex
+
+
+def add_envelope_option(p: argparse.ArgumentParser) -> None:
+    """Add ``--envelope`` (SPEC §9): the variation the table world trains in."""
+    p.add_argument(
+        "--envelope",
+        default="none",
+        metavar="none|default|FILE.json",
+        help="envelope of variation the table world trains in (SPEC §9): 'none' (the exact "
+        "world of SPEC §3; default), 'default' (evolve.envelope.DEFAULT) or a JSON file of "
+        "Envelope fields; tests report in the envelope and in the exact world",
+    )
+
+
+def envelope_from_args(args: argparse.Namespace) -> Envelope:
+    """The ``Envelope`` of ``--envelope`` (an ``EnvelopeError``, exit 2, names a bad one)."""
+    return load_envelope(args.envelope)
