@@ -55,7 +55,10 @@ ROBOT_RADIUS = ColonySettings().disc_radius
 colony's disc (SPEC §7). A colony uses its own ``ColonySettings.disc_radius``."""
 STD_KEYS = tuple(f"{c}_std" for c in COLUMNS)
 """Columns of a gait table's per-cycle spread: F_std, T_std, dH_std."""
-TEST_IDS = {"figure9": 0, "selection": 1, "docking": 2, "colony_final": 3, "punctuation": 4}
+TEST_IDS = {
+    "figure9": 0, "selection": 1, "docking": 2, "colony_final": 3, "punctuation": 4,
+    "ranking": 5,
+}  # fmt: skip
 """Id of each test whose runs an envelope varies: key ``key_of_test(seed, test, ...)``."""
 
 

@@ -1,0 +1,175 @@
+"""Issue 16's ranking measurement: does the table world (in an arm's own envelope) rank a
+run's controllers as physics does, and which envelope scales would rank them best?
+
+    python -m servobot.robustness.measure --run runs/none_s0 --envelope none \\
+        --table runs/cal/gait_table.json --per-population 5 --starts 4 --out runs/rank_none_s0 \\
+        [--bests] [--tune] [--workers 2]
+
+Genomes: ``--per-population`` distinct genomes from each final population's top 20 %
+(``ranking.top_genomes``), and with ``--bests`` the best of every saved generation. Each runs
+from the same ``--starts`` seeded coverage starts in the table world and in the physics
+worlds ``shipped`` and ``station-seen`` (``run_matrix`` into ``OUT/matrix``, resumable). The
+table side is the arm's own world: the exact table for ``none``, else the mean over draws of
+the envelope. ``--tune`` scores a grid of envelopes on the same physics runs, each world
+against the envelope with the station block never (``shipped``) or always (``station-seen``)
+seen. Writes ``OUT/ranking.json`` and ``OUT/ranking.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from evolve.codec import format_chromosome
+from evolve.envelope import DEFAULT, Envelope, load_envelope
+from evolve.table import load_table
+from infra.io import atomic_write_text
+from servobot.robustness.matrix import RobustnessSettings, run_matrix
+from servobot.robustness.ranking import (
+    agreement,
+    generation_bests,
+    seen,
+    table_runs,
+    top_genomes,
+)
+
+WORLDS = ("shipped", "station-seen")
+"""The physics worlds the ranking is measured in (issue 16)."""
+TUNE_GRID = {
+    "scatter_scale": (0.0, 0.5, 1.0, 1.5, 2.0),
+    "bias_scale": (0.0, 0.5, 1.0),
+    "reach_units": (0.0, 5.0, 10.0),
+    "station_stops": (False, True),
+}
+"""The envelope scales ``--tune`` tries (every combination)."""
+
+
+def physics_runs(matrix: Path, world: str, names: list[str], starts: int) -> np.ndarray:
+    """(G, S) physics inner squares of each genome's cell in ``world`` (NaN: a physics error)."""
+    out = np.full((len(names), starts), np.nan)
+    for g, name in enumerate(names):
+        rep = json.loads((matrix / "runs" / world / name / "report.json").read_text())
+        for r in rep["runs"]:
+            if r["physics"] is not None:
+                out[g, r["index"]] = r["physics"]["inner_squares"]
+    return out
+
+
+def _score(tab: dict[str, np.ndarray], phys: dict[str, np.ndarray]) -> dict[str, Any]:
+    per = {w: agreement(tab[w], phys[w]) for w in phys}
+    return per | {
+        "spearman_mean": float(np.mean([v["spearman"] for v in per.values()])),
+        "abs_delta_mean": float(np.mean([v["mean_abs_delta"] for v in per.values()])),
+    }
+
+
+def tune(genomes, starts, table, phys, seed: int, draws: int, steps: int) -> list[dict[str, Any]]:
+    """Every envelope of ``TUNE_GRID``, scored on the physics runs ``phys`` by world."""
+    rows = []
+    combos = list(itertools.product(*TUNE_GRID.values()))
+    for values in tqdm(combos, desc="tune", disable=not sys.stderr.isatty()):
+        env = Envelope(**dict(zip(TUNE_GRID, values, strict=True)), station_seen_p=0.5)
+        tab = {w: table_runs(genomes, starts, table=table, envelope=seen(env, w != "shipped"),
+                             seed=seed, draws=draws, steps=steps) for w in phys}  # fmt: skip
+        rows.append({"envelope": env.to_dict()} | _score(tab, phys))
+    return sorted(rows, key=lambda r: (-r["spearman_mean"], r["abs_delta_mean"]))
+
+
+def _markdown(doc: dict[str, Any]) -> str:
+    lines = [f"# Ranking: {doc['run']} (envelope {doc['envelope_name']})", "",
+             f"{doc['genomes']} genomes × {doc['starts']} starts, worlds {', '.join(WORLDS)}", "",
+             "| sample | table world | physics world | Spearman | mean abs Δ | table | physics |",
+             "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for sample, by in doc["agreement"].items():
+        for side, worlds in by.items():
+            for w, a in worlds.items():
+                lines.append(f"| {sample} | {side} | {w} | {a['spearman']:.2f} | "
+                             f"{a['mean_abs_delta']:.1f} | {a['table_mean']:.1f} | "
+                             f"{a['physics_mean']:.1f} |")  # fmt: skip
+    if doc.get("tune"):
+        lines += ["", "## Envelope scales scored on these physics runs (best 10)", "",
+                  "| scatter | bias | reach | stops | Spearman (mean of worlds) | mean abs Δ |",
+                  "|---|---|---|---|---|---|"]  # fmt: skip
+        for r in doc["tune"][:10]:
+            e = r["envelope"]
+            lines.append(f"| {e['scatter_scale']} | {e['bias_scale']} | {e['reach_units']} | "
+                         f"{e['station_stops']} | {r['spearman_mean']:.2f} | "
+                         f"{r['abs_delta_mean']:.1f} |")  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m servobot.robustness.measure", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--run", type=Path, required=True, help="an evolve run folder")
+    p.add_argument("--envelope", default="none", help="the arm's envelope (its own world)")
+    p.add_argument("--table", default="paper")
+    p.add_argument("--per-population", type=int, default=5)
+    p.add_argument("--bests", action="store_true", help="also every saved generation's best")
+    p.add_argument("--starts", type=int, default=4)
+    p.add_argument("--steps", type=int, default=600, help="steps per run (SPEC §5: 600)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--draws", type=int, default=16, help="envelope draws per table start")
+    p.add_argument("--tune", action="store_true")
+    p.add_argument("--workers", type=int, default=None)
+    p.add_argument("--out", type=Path, required=True)
+    a = p.parse_args(argv)
+    envelope, table = load_envelope(a.envelope), load_table(a.table)
+    samples = {"top20": top_genomes(a.run, a.per_population)}
+    if a.bests:
+        samples["generation_bests"] = generation_bests(a.run)
+    genomes = [g for s in samples.values() for g in s]
+    files = []
+    for g in genomes:
+        f = a.out / "genomes" / f"{g.label}.txt"
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text(format_chromosome(g.bits) + "\n")
+        files.append(f)
+    settings = RobustnessSettings(worlds=WORLDS, starts=a.starts, steps=a.steps, seed=a.seed,
+                                  table=a.table)
+    matrix = a.out / "matrix"
+    bar = tqdm(total=len(files) * len(WORLDS) * a.starts, desc="physics", mininterval=60)
+    doc = run_matrix(files, matrix, settings, workers=a.workers,
+                     resume=(matrix / "settings.json").exists(),
+                     on_run=lambda _r: bar.update(), on_skip=bar.update)  # fmt: skip
+    bar.close()
+    starts = np.asarray(doc["start_poses"]["coverage"], dtype=float)
+    names = [Path(c["file"]).stem for c in doc["table_per_chromosome"]]
+    assert names == [g.label for g in genomes]
+    phys_all = {w: physics_runs(matrix, w, names, a.starts) for w in WORLDS}
+    out: dict[str, Any] = {"run": str(a.run), "envelope_name": a.envelope,
+                           "envelope": envelope.to_dict(), "genomes": len(genomes),
+                           "starts": a.starts, "agreement": {}}  # fmt: skip
+    offset = 0
+    for sample, gs in samples.items():
+        rows = slice(offset, offset + len(gs))
+        offset += len(gs)
+        phys = {w: v[rows] for w, v in phys_all.items()}
+        own = table_runs(gs, starts, table=table, envelope=envelope, seed=a.seed, draws=a.draws,
+                         steps=a.steps)
+        exact = table_runs(gs, starts, table=table, steps=a.steps)
+        out["agreement"][sample] = {
+            "own world": {w: agreement(own, phys[w]) for w in WORLDS},
+            "exact world": {w: agreement(exact, phys[w]) for w in WORLDS},
+        }
+    if a.tune:
+        top = samples["top20"]
+        phys = {w: v[: len(top)] for w, v in phys_all.items()}
+        out["tune"] = tune(top, starts, table, phys, a.seed, a.draws, a.steps)
+        out["default_rank"] = next(i for i, r in enumerate(out["tune"]) if
+                                   r["envelope"] == DEFAULT.to_dict())
+    atomic_write_text(a.out / "ranking.json", json.dumps(out, indent=1))
+    atomic_write_text(a.out / "ranking.md", _markdown(out))
+    print(_markdown(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,141 @@
+"""Does the table world rank controllers as physics does? Genome samples, the table's
+prediction in an envelope, and the agreement measures of issue 16 (pure functions over
+arrays and run folders; the physics runs come from ``servobot.robustness.matrix``).
+
+Units: fitness is inner squares reached of the 64 (SPEC §5 test), per run or averaged over a
+genome's starts. A genome's table fitness in an envelope is its mean over ``draws``
+independent draws of the envelope per start (keys ``key_of_test(seed, "ranking", d)``), so
+that it estimates the envelope's expectation, not one sample of it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import spearmanr
+
+from evolve.codec import SECTION_GENES, read_chromosome
+from evolve.envelope import NONE, Envelope, key_of_test
+from evolve.evaluation import evaluate
+from infra.errors import InputError
+
+TOP_FRACTION = 0.2
+"""Where selection acts: the top 20 % of a final population by its last training fitness."""
+_GEN_FILE = re.compile(r"pop(\d+)_gen(\d+)\.npz$")
+
+
+class RankingError(InputError, ValueError):
+    """A run folder without what a ranking needs; the message names the file."""
+
+
+@dataclass(frozen=True)
+class Genome:
+    """A sampled controller: a label saying where it came from and its (16, 30) bits."""
+
+    label: str
+    bits: np.ndarray
+
+
+def _saved(run: Path) -> dict[int, dict[int, Path]]:
+    """{population: {generation: file}} of a coverage run's saved populations."""
+    found: dict[int, dict[int, Path]] = {}
+    for f in sorted((run / "coverage" / "populations").glob("pop*_gen*.npz")):
+        m = _GEN_FILE.search(f.name)
+        if m:
+            found.setdefault(int(m[1]), {})[int(m[2])] = f
+    if not found:
+        raise RankingError(f"{run / 'coverage' / 'populations'}: no saved populations")
+    return found
+
+
+def navigation_of(run: Path) -> np.ndarray:
+    """The fixed navigation section (8, 30) the run's coverage stage used."""
+    best = run / "coverage" / "best_pop0.txt"
+    if not best.is_file():
+        raise RankingError(f"{best}: missing (a finished coverage stage writes it)")
+    return read_chromosome(best)[SECTION_GENES:]
+
+
+def _full(section: np.ndarray, navigation: np.ndarray) -> np.ndarray:
+    return np.concatenate([section, navigation]).astype(np.uint8)
+
+
+def top_genomes(run: Path, per_population: int, fraction: float = TOP_FRACTION) -> list[Genome]:
+    """``per_population`` distinct genomes of each final population's top ``fraction`` (by the
+    last generation's training fitness), evenly spaced over those ranks, best first."""
+    navigation = navigation_of(run)
+    out: list[Genome] = []
+    for pop, gens in sorted(_saved(run).items()):
+        last = max(gens)
+        with np.load(gens[last]) as d:
+            population, fitness = d["population"], d["fitness"]
+        order = np.argsort(-fitness, kind="stable")[: max(1, round(fraction * len(fitness)))]
+        seen: set[bytes] = set()
+        distinct = []
+        for i in order:
+            key = population[i].tobytes()
+            if key not in seen:
+                seen.add(key)
+                distinct.append(int(i))
+        picks = np.unique(np.linspace(0, len(distinct) - 1, per_population).round().astype(int))
+        for rank in picks:
+            i = distinct[rank]
+            out.append(Genome(f"p{pop}g{last}r{rank}", _full(population[i], navigation)))
+    return out
+
+
+def generation_bests(run: Path) -> list[Genome]:
+    """The best of every saved generation of every population."""
+    navigation = navigation_of(run)
+    out = []
+    for pop, gens in sorted(_saved(run).items()):
+        for gen, f in sorted(gens.items()):
+            with np.load(f) as d:
+                out.append(Genome(f"p{pop}g{gen}best", _full(d["best"], navigation)))
+    return out
+
+
+def table_runs(
+    genomes: list[Genome],
+    starts: np.ndarray,
+    *,
+    table,
+    envelope: Envelope = NONE,
+    seed: int = 0,
+    draws: int = 16,
+    steps: int | None = None,
+) -> np.ndarray:
+    """(G, S) inner squares per genome and start in the table world under ``envelope``: one
+    run for ``NONE``, else the mean of ``draws`` draws of the envelope."""
+    bits = np.stack([g.bits for g in genomes])
+    n = 1 if envelope == NONE else draws
+    total = np.zeros((len(genomes), len(starts)))
+    for d in range(n):
+        ev = evaluate(bits, starts, table=table, mode="coverage", max_steps=steps,
+                      envelope=envelope, envelope_key=key_of_test(seed, "ranking", d))  # fmt: skip
+        total += ev.inner_squares
+    return total / n
+
+
+def seen(envelope: Envelope, station_seen: bool) -> Envelope:
+    """``envelope`` with the station block always (or never) seen: its prediction for one
+    physics world (``station-seen`` or ``shipped``)."""
+    return dataclasses.replace(envelope, station_seen_p=1.0 if station_seen else 0.0)
+
+
+def agreement(table: np.ndarray, physics: np.ndarray) -> dict[str, float]:
+    """How table runs (G, S) predict physics runs (G, S) of the same genomes and starts:
+    Spearman of the genomes' mean fitness, mean per-run |Δ inner squares|, and the mean
+    fitness of each side (inner squares)."""
+    t, p = table.mean(axis=1), physics.mean(axis=1)
+    rho = float(spearmanr(t, p).statistic) if np.ptp(t) > 0 and np.ptp(p) > 0 else float("nan")
+    return {
+        "spearman": rho,
+        "mean_abs_delta": float(np.abs(table - physics).mean()),
+        "table_mean": float(t.mean()),
+        "physics_mean": float(p.mean()),
+    }
