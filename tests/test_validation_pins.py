@@ -26,6 +26,7 @@ from evolve.codec import parse_chromosome
 from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE
 from infra.executors import SerialExecutor
+from servo_mj.robot.bot import PhysicsError
 from servo_mj.world import physics_world
 from servobot.validation.colony import validate_colony
 from servobot.validation.lone import validate
@@ -54,8 +55,8 @@ PINS = {
         "settings.json": "5a2c528939d222f678a0ab2bd6cf51cb66c68ca0ce820b6aaccfb9d041969ef9",
     },
     "blow_up": {
-        "report.json": "0caedd46d64d026dd8d0bd51aa4449078114bd8973a954bd3fd6566098701c6c",
-        "report.md": "627db3db0d703db0d7b24a34fd76f716b4a85961e169db3feb1733eb0c5b1572",
+        "report.json": "f8d35e1d21d3c48aca24009bec5399cedc563af8b68eff64fe0fd050df3e2702",
+        "report.md": "1a83ff477ba34300bb7b9d98c93b9feae532e44a30ca35effd68670da40e7c5c",
         "tracks.npz": "007151dd59956b63bdf5acb123ebc85bfe698849b4229a3bac40eea293d354e8",
         "settings.json": "e9d53eeba04258d3657138fcad11436a454301a471345ef6433dcf5a7cf4436e",
     },
@@ -98,12 +99,13 @@ def digest(path: Path) -> str:
 
 
 def _blow_up(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Start 1's physics state turns NaN at its third cycle (as in tests/test_validate.py)."""
+    """Start 1's physics (y 300) fails at its third cycle: its run keeps the table record, an
+    error and the partial physics record."""
     original = physics_world.PhysicsWorld.step
 
     def step(self, gait):
-        if self.cycles == 2 and abs(self.pose()[0] - 300.0) < 40.0:
-            self.data.qvel[0] = np.nan
+        if self.cycles == 2 and self.pose()[1] > 250.0:
+            raise PhysicsError("NaN in qvel (injected at the third cycle)")
         return original(self, gait)
 
     monkeypatch.setattr(physics_world.PhysicsWorld, "step", step)
