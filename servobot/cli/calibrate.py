@@ -36,7 +36,7 @@ MEASURE_OPTIONS = (
     ("--seed", "seed", int, "seed of the servo-target noise"),
     ("--noise", "noise_rad", float, "servo-target noise std, rad"),
 )
-"""(option, field of ``CalibrationSettings`` and ``FitSettings``, type, help) of how the gaits
+"""(option, field of ``calibration.measure.WalkSettings``, type, help) of how the gaits
 are walked."""
 
 
