@@ -3,7 +3,8 @@
 ``validate_colony(bits, starts, ...)`` runs the 16-gene chromosome on R robots from every
 colony start ((N, R, 3) poses) twice — in the table world (``evolve.world.TableColony``) and
 in the MuJoCo arena with R ServoBots (``servo_mj.world.physics_colony.PhysicsColony``), both
-by ``evolve.interpreter.run_colony`` — and returns a report::
+by ``evolve.interpreter.run_colony`` — and returns a report (``servobot.validation.lone.validate``
+with ``colony_kind(colony)``: the same checks, run folder, executors and files)::
 
     {"runs": [{"index", "start": [{"x", "y", "h"}, ...],        # one per robot
                "table":   {"colony": {"squares", "inner_squares", "colony_steps",

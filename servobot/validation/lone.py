@@ -27,8 +27,10 @@ the sizes are checked (``validation_need``) and ``out_dir`` is taken as a run fo
 ``force``, which deletes only ``VALIDATION_FILES``). An interrupted run's recording is
 discarded, never left truncated at its final path.
 
-A colony of R robots sharing the station (SPEC §7) is ``servobot.validation.colony``, which
-runs through this module's ``execute`` and ``run_both_worlds``.
+``validate`` is the one path of every validation: what runs at each start is its ``Kind``,
+one robot (``LONE``) or a colony of R robots sharing the station (SPEC §7,
+``servobot.validation.colony.colony_kind``); the checks, the run folder, the executor, the
+report and its files are the same code for both.
 """
 
 from __future__ import annotations

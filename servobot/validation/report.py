@@ -1,7 +1,8 @@
 """The validation report: per-world summaries, the table-vs-physics gap, Markdown and files.
 
 Pure functions over the per-run records that ``servobot.validation.lone.validate`` collects; see
-that module for the record layout.
+that module for the record layout. A colony's report (``servobot.validation.colony_report``)
+shares the frame: ``summarise_runs``, ``summary_markdown``, ``markdown_table`` and the cells.
 """
 
 from __future__ import annotations
