@@ -19,30 +19,22 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from calibration.measure import measure_gait
+from calibration.measure import WalkSettings, measure_gait
 from calibration.report import TOLERANCE
 from evolve.table import PAPER_TABLE
 from infra.executors import Executor, Failed, make_executor, values_or_raise
 from servo_mj.robot.gaits import N_GAITS, GaitLibrary, check_gait
 from servo_mj.robot.model import load_robot, thrust_limit_rad
-from servo_mj.robot.settings import CALIBRATION_NOISE_RAD
 
 FIXED_GAITS = (7,)
 """Gaits without fitted parameters (stand still)."""
 
 
 @dataclass(frozen=True)
-class FitSettings:
-    """How the per-gait fit searches [chosen]."""
+class FitSettings(WalkSettings):
+    """How the per-gait fit searches [chosen]; each evaluation walks as a calibration
+    (``WalkSettings``, its defaults those of the default calibration)."""
 
-    cycles: int = 20
-    """Measured cycles per evaluation (same as the default calibration)."""
-    settle_cycles: int = 1
-    """Unmeasured cycles before them."""
-    seed: int = 0
-    """Seed of the servo-target noise during the fit."""
-    noise_rad: float = CALIBRATION_NOISE_RAD
-    """Servo-target noise during the fit, rad."""
     max_evals: int = 160
     """Evaluations per gait at most."""
     stop_residual: float = 0.3
@@ -88,15 +80,7 @@ def fit_gait(
         )
         penalty = 100.0 * max(0.0, reach - limit) ** 2
         lib = library.with_row(g, (*params, lift))
-        per_cycle = measure_gait(
-            g,
-            cycles=settings.cycles,
-            settle_cycles=settings.settle_cycles,
-            seed=settings.seed,
-            noise_rad=settings.noise_rad,
-            library=lib,
-            model=model,
-        )
+        per_cycle = measure_gait(g, library=lib, model=model, **settings.walk_kwargs())
         mean = per_cycle[:, :3].mean(axis=0)
         r = scaled_residual(mean, target)
         c = float(r @ r) + penalty

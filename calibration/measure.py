@@ -32,8 +32,9 @@ from servo_mj.robot.settings import CALIBRATION_NOISE_RAD, PhysicsSettings
 
 
 @dataclass(frozen=True)
-class CalibrationSettings:
-    """Defaults of a calibration run (``servobot calibrate`` options) [chosen]."""
+class WalkSettings:
+    """How a gait walks to be measured: settling cycles, measured cycles, servo-target noise and
+    its seed [chosen]. A calibration and each evaluation of a fit walk alike."""
 
     cycles: int = 20
     """Measured cycles per gait (long enough that the mean is within ~0.3° of a 100-cycle one)."""
@@ -43,6 +44,16 @@ class CalibrationSettings:
     """Seed of the servo-target noise (per gait: ``default_rng([seed, gait])``)."""
     noise_rad: float = CALIBRATION_NOISE_RAD
     """Std of the noise on every new servo activation, rad."""
+
+    def walk_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of ``measure_gait`` for this walk."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(WalkSettings)}
+
+
+@dataclass(frozen=True)
+class CalibrationSettings(WalkSettings):
+    """Defaults of a calibration run (``servobot calibrate`` options) [chosen]."""
+
     start_spacing_cm: float = 400.0
     """Start poses of the 16 gaits lie on a 4 × 4 grid this far apart, heading north (so
     recordings do not overlap)."""
@@ -55,13 +66,7 @@ class CalibrationSettings:
 
     def measure_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of ``measure_gait`` / ``measure_all`` for these settings."""
-        return {
-            "cycles": self.cycles,
-            "settle_cycles": self.settle_cycles,
-            "seed": self.seed,
-            "noise_rad": self.noise_rad,
-            "model_file": self.model,
-        }
+        return self.walk_kwargs() | {"model_file": self.model}
 
 
 DEFAULTS = CalibrationSettings()
@@ -178,30 +183,15 @@ def measure_gaits(
     cycles: int = DEFAULTS.cycles,
     seed: int = DEFAULTS.seed,
     *,
-    settle_cycles: int = DEFAULTS.settle_cycles,
-    noise_rad: float = DEFAULTS.noise_rad,
-    library: GaitLibrary | None = None,
-    physics: PhysicsSettings | None = None,
-    model_file: ModelFile = None,
     workers: int = 1,
     executor: Executor | None = None,
-    on_cycle: CycleCallback | None = None,
-    on_frame: FrameCallback | None = None,
+    **kwargs: Any,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The measured gait table: (values (16, 4), std (16, 4)) of (F cm, T cm, dH deg,
-    energy J), mean and per-cycle standard deviation; rows of gaits not in ``gaits`` are NaN."""
+    energy J), mean and per-cycle standard deviation; rows of gaits not in ``gaits`` are NaN.
+    ``kwargs``: the other keyword arguments of ``measure_gait`` (``settle_cycles``,
+    ``noise_rad``, ``library``, ``physics``, ``model_file``, ``on_cycle``, ``on_frame``)."""
     per_cycle = measure_all(
-        gaits,
-        workers=workers,
-        executor=executor,
-        cycles=cycles,
-        settle_cycles=settle_cycles,
-        seed=seed,
-        noise_rad=noise_rad,
-        library=library,
-        physics=physics,
-        model_file=model_file,
-        on_cycle=on_cycle,
-        on_frame=on_frame,
+        gaits, workers=workers, executor=executor, cycles=cycles, seed=seed, **kwargs
     )
     return summarise(per_cycle)

@@ -81,15 +81,20 @@ def read_bytes(path: str | Path, *, what: str, limit: int = MAX_INPUT_BYTES) -> 
             raise ReadError(path, f"is {st.st_size:,} bytes, too large for a {what}")
         with open(path, "rb") as fh:
             data = fh.read(limit + 1)
-    except FileNotFoundError as exc:
-        raise ReadError(path, f"no such {what}") from exc
-    except PermissionError as exc:
-        raise ReadError(path, f"cannot read this {what}: permission denied") from exc
     except OSError as exc:
-        raise ReadError(path, f"cannot read this {what}: {exc.strerror or exc}") from exc
+        raise ReadError(path, _unreadable(exc, what)) from exc
     if len(data) > limit:
         raise ReadError(path, f"is larger than {limit:,} bytes, too large for a {what}")
     return data
+
+
+def _unreadable(exc: OSError, what: str) -> str:
+    """Why a file could not be read, for ``ReadError``."""
+    if isinstance(exc, FileNotFoundError):
+        return f"no such {what}"
+    if isinstance(exc, PermissionError):
+        return f"cannot read this {what}: permission denied"
+    return f"cannot read this {what}: {exc.strerror or exc}"
 
 
 def decode_text(data: bytes, path: str | Path, *, what: str) -> str:

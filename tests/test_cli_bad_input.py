@@ -182,37 +182,13 @@ CASES = {
         (["{chrom16}", "--robots", "1000000000", "--starts", "2"], "--robots 1000000000"),
         (["{chrom16}", "--robots", "2", "--start", "300", "300", "0"], "2 at a time"),
         (
-            [
-                "{chrom16}",
-                "--robots",
-                "2",
-                "--start",
-                "300",
-                "300",
-                "0",
-                "--start",
-                "310",
-                "300",
-                "0",
-            ],
+            "{chrom16} --robots 2 --start 300 300 0 --start 310 300 0".split(),
             "robots 0 and 1 are 10 units apart",
-        ),  # fmt: skip
+        ),
         (
-            [
-                "{chrom16}",
-                "--robots",
-                "2",
-                "--start",
-                "300",
-                "300",
-                "0",
-                "--start",
-                "10",
-                "300",
-                "0",
-            ],
+            "{chrom16} --robots 2 --start 300 300 0 --start 10 300 0".split(),
             "start 0, robot 1: start (10, 300) lies in the kill zone",
-        ),  # fmt: skip
+        ),
     ],
     "robustness": [
         (["{dir}"], "a_folder: is a folder, not a chromosome file"),

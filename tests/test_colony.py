@@ -138,16 +138,22 @@ LOW_TO_NAV = chrom(gene("00", B(4, 0), G(7), G(7), G(7)))
 """Gene 0: on low power go to the navigation section, which stands still (gait 7)."""
 
 
+def at_the_station(colony=None, events=None):
+    """Two LOW_TO_NAV robots 30 apart in the docking box on low power, 20 steps at most, in
+    both worlds (``both``)."""
+    return both(
+        LOW_TO_NAV, [(460, 250, 90), (460, 220, 90)], table=np.zeros((16, 3)), colony=colony,
+        events=events, mode="coverage", start_power=3.9, max_steps=20,
+    )  # fmt: skip
+
+
 def test_second_robot_is_kept_from_docking_while_the_first_charges():
     # Both robots stand in the docking box, 30 apart, on low power. Colony step 1: robot 0
     # docks; robot 1 meets the rule but must wait. Robot 0 charges in steps 2–11 (power
     # rising linearly from 3.9 to 5.0 V) and leaves the station free during step 11, so
     # robot 1 docks in step 11 after 10 waits. Gait 15 does not move here, but costs power.
     events: list[ColonyEvent] = []
-    res, _ = both(
-        LOW_TO_NAV, [(460, 250, 90), (460, 220, 90)], table=np.zeros((16, 3)),
-        mode="coverage", start_power=3.9, max_steps=20, events=events.append,
-    )  # fmt: skip
+    res, _ = at_the_station(events=events.append)
     r0, r1 = res.robots
     assert (r0.docks, r1.docks) == (1, 1)
     assert (r0.station_waits, r1.station_waits) == (0, 10)
@@ -166,10 +172,7 @@ def test_second_robot_is_kept_from_docking_while_the_first_charges():
 def test_charging_at_once_leaves_the_station_free():
     # With charge_steps = 0 robot 0 charges within its own step, so robot 1 docks at once.
     colony = ColonySettings(robots=2, charge_steps=0)
-    res, _ = both(
-        LOW_TO_NAV, [(460, 250, 90), (460, 220, 90)], table=np.zeros((16, 3)), colony=colony,
-        mode="coverage", start_power=3.9, max_steps=20,
-    )  # fmt: skip
+    res, _ = at_the_station(colony)
     assert [r.docks for r in res.robots] == [1, 1]
     assert [r.station_waits for r in res.robots] == [0, 0]
     assert res.colony_steps == 20
@@ -178,10 +181,7 @@ def test_charging_at_once_leaves_the_station_free():
 def test_colony_step_limit_ends_every_robot():
     # The SPEC read literally: the run ends after 15 colony steps, charging steps included.
     colony = ColonySettings(robots=2, colony_step_limit=15)
-    res, _ = both(
-        LOW_TO_NAV, [(460, 250, 90), (460, 220, 90)], table=np.zeros((16, 3)), colony=colony,
-        mode="coverage", start_power=3.9, max_steps=20,
-    )  # fmt: skip
+    res, _ = at_the_station(colony)
     assert res.colony_steps == 15
     assert [r.end for r in res.robots] == [END_STEP_LIMIT] * 2
     assert [r.steps for r in res.robots] == [5, 11]  # 1 + 4 backups; 11 (docks, charging)

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 
-import numba
 import numpy as np
 from chromosome_text import LIGHT_FOLLOWER
+from test_kernel import numba_threads
 
 from evolve import evaluate, evaluate_colony
 from evolve.codec import parse_chromosome
@@ -167,12 +167,8 @@ def test_deterministic_and_thread_count_independent():
     genomes = rng.integers(0, 2, size=(64, 16, 30), dtype=np.uint8)
     starts = colony_starts(rng, 10, WORLD, COLONY)
     a = evaluate_colony(genomes, starts, table=PAPER_TABLE, mode="coverage")
-    old = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
+    with numba_threads(1):
         b = evaluate_colony(genomes, starts, table=PAPER_TABLE, mode="coverage")
-    finally:
-        numba.set_num_threads(old)
     for f in dataclasses.fields(a):
         assert np.array_equal(getattr(a, f.name), getattr(b, f.name)), f.name
     assert a.squares.shape == (64, 10) and a.final_pose.shape == (64, 10, 3, 3)

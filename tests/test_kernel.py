@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+from collections.abc import Iterator
 
 import numba
 import numpy as np
@@ -153,17 +155,24 @@ def test_docking_case_values() -> None:
     assert ev.final_pose[0, 0, 2] == pytest.approx(90 - 4 * 1.8 + 6.2)
 
 
+@contextlib.contextmanager
+def numba_threads(n: int) -> Iterator[None]:
+    """The kernels run on ``n`` threads inside the block."""
+    old = numba.get_num_threads()
+    numba.set_num_threads(n)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(old)
+
+
 def test_deterministic_and_thread_count_independent() -> None:
     rng = np.random.default_rng(5)
     genomes = rng.integers(0, 2, size=(64, 16, 30), dtype=np.uint8)
     starts = starts_in(rng, 10, (350, 175), (450, 325))
     a = evaluate(genomes, starts, table=PAPER_TABLE, mode="coverage")
-    old = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
+    with numba_threads(1):
         b = evaluate(genomes, starts, table=PAPER_TABLE, mode="coverage")
-    finally:
-        numba.set_num_threads(old)
     c = evaluate(genomes, starts, table=PAPER_TABLE, mode="coverage")
     for f in dataclasses.fields(a):
         assert np.array_equal(getattr(a, f.name), getattr(b, f.name)), f.name

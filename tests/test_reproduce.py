@@ -23,20 +23,11 @@ from servobot.reproduce.run import (
 )
 
 TINY = ReproduceSettings(
-    calibration_cycles=1,
-    calibration_settle_cycles=0,
-    navigation_populations=1,
-    navigation_population_size=6,
-    navigation_generations=2,
-    coverage_populations=2,
-    coverage_population_size=6,
-    coverage_generations=2,
-    test_starts=4,
-    validate_starts=2,
-    validate_max_steps=6,
-    validate_navigation_starts=2,
-    seed=3,
-)
+    calibration_cycles=1, calibration_settle_cycles=0,
+    navigation_populations=1, navigation_population_size=6, navigation_generations=2,
+    coverage_populations=2, coverage_population_size=6, coverage_generations=2, test_starts=4,
+    validate_starts=2, validate_max_steps=6, validate_navigation_starts=2, seed=3,
+)  # fmt: skip
 """Smaller than --quick: seconds, but every stage and file of a full run."""
 
 

@@ -29,9 +29,8 @@ from evolve.anytime import METHODS, AnytimeSettings
 from evolve.settings import WorldSettings
 from infra.bounds import check_int
 from infra.io import check_output_dir
-from servobot.cli.evolve import CliError, ga_settings, load_navigation
-from servobot.cli.options import add_executor_option, executor_from_args
-from servobot.cli.runner import Interrupted, command_line, run_command
+from servobot.cli.evolve import CliError, ga_settings, load_navigation, run_evolution
+from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
 from servobot.progress import GenerationBars, RunBar
 
 PROG = "servobot anytime"
@@ -66,9 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--generations", type=int, default=None, help="generations (default 512)")
     p.add_argument("--population-size", type=int, default=None, help="individuals (256)")
     p.add_argument("--seed", type=int, default=None, help="seed of every random draw (0)")
-    p.add_argument("--model", type=Path, default=None, metavar="FILE",
-                   help="robot model file in physics (default: the shipped ServoBot); a "
-                   "--table PATH must have been calibrated on it")  # fmt: skip
+    add_model_option(p, "robot model file in physics (default: the shipped ServoBot); a --table "
+                     "PATH must have been calibrated on it")  # fmt: skip
     p.add_argument("--baseline", type=Path, default=None, metavar="DIR",
                    help="a --method none run of the same seed (its --out), drawn beside this "
                    "one in figure_anytime.png")  # fmt: skip
@@ -144,23 +142,14 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``servobot anytime``; returns the exit code (0 ok, 2 bad input, 130 interrupted)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
-    bars = GenerationBars(enabled=not args.no_progress)
 
-    def interrupted() -> Interrupted:
+    def kept(args: argparse.Namespace) -> str:
         folder = args.out / "anytime"
-        kept = (
-            f"the checkpoints and punctuation records in {folder}"
-            if (folder / "checkpoints").is_dir()
-            else "nothing yet"
-        )
-        return Interrupted(kept, command_line(PROG, argv, "--resume", drop=["--force"]))
+        if (folder / "checkpoints").is_dir():
+            return f"the checkpoints and punctuation records in {folder}"
+        return "nothing yet"
 
-    try:
-        return run_command(PROG, lambda: _run(args, bars), interrupted)
-    finally:
-        bars.close()
+    return run_evolution(PROG, build_parser(), argv, _run, kept)
 
 
 if __name__ == "__main__":

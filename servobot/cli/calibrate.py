@@ -26,10 +26,18 @@ from infra.executors import BatchError
 from infra.io import check_output_file
 from servo_mj.robot.bot import PhysicsError
 from servo_mj.robot.gaits import MAX_TARGET_RAD, PARAMS_JSON, GaitLibrary
-from servobot.cli.options import add_executor_option, executor_from_args
-from servobot.cli.runner import EXIT_FAILED, Interrupted, command_line, run_command
+from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
+from servobot.cli.runner import EXIT_FAILED, run_main
 
 PROG = "servobot calibrate"
+MEASURE_OPTIONS = (
+    ("--cycles", "cycles", int, "measured cycles per gait"),
+    ("--settle-cycles", "settle_cycles", int, "unmeasured cycles first"),
+    ("--seed", "seed", int, "seed of the servo-target noise"),
+    ("--noise", "noise_rad", float, "servo-target noise std, rad"),
+)
+"""(option, field of ``calibration.measure.WalkSettings``, type, help) of how the gaits
+are walked."""
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -37,30 +45,9 @@ def _parser() -> argparse.ArgumentParser:
         prog="servobot calibrate",
         description="Measure F, T, dH of the 16 gaits in MuJoCo and compare with Figure 4.",
     )
-    p.add_argument(
-        "--cycles",
-        type=int,
-        default=DEFAULTS.cycles,
-        help=f"measured cycles per gait ({DEFAULTS.cycles})",
-    )
-    p.add_argument(
-        "--settle-cycles",
-        type=int,
-        default=DEFAULTS.settle_cycles,
-        help=f"unmeasured cycles first ({DEFAULTS.settle_cycles})",
-    )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=DEFAULTS.seed,
-        help=f"seed of the servo-target noise ({DEFAULTS.seed})",
-    )
-    p.add_argument(
-        "--noise",
-        type=float,
-        default=DEFAULTS.noise_rad,
-        help=f"servo-target noise std, rad ({DEFAULTS.noise_rad})",
-    )
+    for flag, field, kind, what in MEASURE_OPTIONS:
+        default = getattr(DEFAULTS, field)
+        p.add_argument(flag, type=kind, default=default, help=f"{what} ({default})")
     p.add_argument("--out", type=Path, default=Path("runs/calibration"), help="output folder")
     p.add_argument("--fit", action="store_true", help="fit the gait parameters to Figure 4 first")
     p.add_argument(
@@ -83,13 +70,7 @@ def _parser() -> argparse.ArgumentParser:
         "--model: none, only DIR/gait_params.json)",
     )
     p.add_argument("--rrd", type=Path, default=None, help="record the walks for rerun (.rrd)")
-    p.add_argument(
-        "--model",
-        type=Path,
-        default=None,
-        metavar="FILE",
-        help="robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)",
-    )
+    add_model_option(p)
     p.add_argument(
         "--force",
         action="store_true",
@@ -120,19 +101,12 @@ def _check(args: argparse.Namespace) -> None:
 def _run(args: argparse.Namespace, command: str) -> int:
     _check(args)
     library = GaitLibrary.load(args.params)
-    settings = CalibrationSettings(
-        cycles=args.cycles, settle_cycles=args.settle_cycles, seed=args.seed, noise_rad=args.noise,
-        model=None if args.model is None else str(args.model),
-    )  # fmt: skip
+    dest = {flag: flag[2:].replace("-", "_") for flag, *_ in MEASURE_OPTIONS}  # argparse's
+    walk = {field: getattr(args, dest[flag]) for flag, field, _, _ in MEASURE_OPTIONS}
+    settings = CalibrationSettings(**walk, model=None if args.model is None else str(args.model))
     fit = None
     if args.fit:
-        fit = FitSettings(
-            cycles=args.cycles,
-            settle_cycles=args.settle_cycles,
-            seed=args.seed,
-            noise_rad=args.noise,
-            max_evals=args.fit_evals,
-        )
+        fit = FitSettings(**walk, max_evals=args.fit_evals)
         print(f"fitting 15 gaits ({args.workers} workers, <= {fit.max_evals} evaluations each)")
     params_out = args.params_out or (PARAMS_JSON if args.model is None else None)
     kwargs = dict(
@@ -171,15 +145,11 @@ def _run(args: argparse.Namespace, command: str) -> int:
 def main(argv: list[str] | None = None) -> int:
     """Run ``servobot calibrate``; returns the exit code (0 ok, 1 physics failed, 2 bad
     input, 130 interrupted)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = _parser().parse_args(argv)
-    command = command_line(PROG, argv)
 
-    def interrupted() -> Interrupted:
-        kept = (
+    def kept(args: argparse.Namespace) -> str:
+        return (
             f"every earlier file in {args.out} as it was (a calibration writes its files only "
             "when all gaits are measured)"
         )
-        return Interrupted(kept, f"{command} (the calibration starts again)")
 
-    return run_command(PROG, lambda: _run(args, command), interrupted)
+    return run_main(PROG, _parser(), argv, _run, kept, again="the calibration starts again")

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from calibration.compare import compare_tables
 from infra.io import check_output_dir
-from servobot.cli.runner import Interrupted, command_line, run_command
+from servobot.cli.runner import run_main
 
 PROG = "servobot compare"
 
@@ -46,13 +46,8 @@ def _run(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``servobot compare``; 0 ok, 2 bad input, 130 interrupted."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
-
-    def interrupted() -> Interrupted:
-        return Interrupted(f"every earlier file in {args.out} as it was", command_line(PROG, argv))
-
-    return run_command(PROG, lambda: _run(args), interrupted)
+    return run_main(PROG, build_parser(), argv, lambda args, _command: _run(args),
+                    lambda args: f"every earlier file in {args.out} as it was")  # fmt: skip
 
 
 if __name__ == "__main__":

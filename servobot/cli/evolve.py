@@ -24,9 +24,11 @@ and says how to resume (exit 130).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +45,7 @@ from servobot.cli.options import (
     envelope_from_args,
     executor_from_args,
 )
-from servobot.cli.runner import Interrupted, command_line, run_command
+from servobot.cli.runner import run_main
 from servobot.progress import GenerationBars
 
 PROG = "servobot evolve"
@@ -175,7 +177,8 @@ def _print_navigation(summary: dict[str, Any], out: Path) -> None:
         + (f", mean {steps:.1f} steps to dock" if steps is not None else "")
     )
     if "envelope_dock_success" in summary:
-        print(f"  in its envelope (same test starts): docked {summary['envelope_dock_success']:.0%}")
+        envelope_dock = summary["envelope_dock_success"]
+        print(f"  in its envelope (same test starts): docked {envelope_dock:.0%}")
     for p in summary["populations"]:
         print(
             f"  population {p['population']} (final best): test fitness "
@@ -184,18 +187,21 @@ def _print_navigation(summary: dict[str, Any], out: Path) -> None:
     print(f"wrote {out / 'navigation' / 'best.txt'} ({summary['wall_s']:.1f} s)")
 
 
-def _print_coverage(summary: dict[str, Any], out: Path) -> None:
-    gen = summary["generations"][-1]
+def _figure9(summary: dict[str, Any]) -> str:
+    """Figure 9 at the last generation: the mean and each population's inner coverage (and the
+    mean in the stage's envelope, on the same test starts, for a stage evolved in one)."""
     per = ", ".join(f"{v:.1f}" for v in summary["final_inner_percent"])
-    print(
-        f"coverage: Figure 9 at generation {gen}: mean {summary['final_mean_inner_percent']:.1f}% "
-        f"of the 64 inner squares (populations: {per})"
+    text = (
+        f"Figure 9 at generation {summary['generations'][-1]}: mean "
+        f"{summary['final_mean_inner_percent']:.1f}% of the 64 inner squares (populations: {per})"
     )
     if "envelope_final_mean_inner_percent" in summary:
-        print(
-            f"  in its envelope (same test starts): mean "
-            f"{summary['envelope_final_mean_inner_percent']:.1f}%"
-        )
+        text += f"; in its envelope {summary['envelope_final_mean_inner_percent']:.1f}%"
+    return text
+
+
+def _print_coverage(summary: dict[str, Any], out: Path) -> None:
+    print(f"coverage: {_figure9(summary)}")
     ho = summary["handoffs"]["all"]
     if ho["dock_rate"] is not None:
         print(
@@ -212,12 +218,9 @@ def _print_coverage(summary: dict[str, Any], out: Path) -> None:
 
 
 def _print_colony(summary: dict[str, Any], out: Path) -> None:
-    gen = summary["generations"][-1]
-    per = ", ".join(f"{v:.1f}" for v in summary["final_inner_percent"])
     print(
-        f"colony of {summary['robots']}: Figure 9 at generation {gen}: mean "
-        f"{summary['final_mean_inner_percent']:.1f}% of the 64 inner squares (populations: "
-        f"{per}); the same bests alone: {summary['one_robot_final_mean_inner_percent']:.1f}%"
+        f"colony of {summary['robots']}: {_figure9(summary)}; the same bests alone: "
+        f"{summary['one_robot_final_mean_inner_percent']:.1f}%"
     )
     for t in summary["final_test"]:
         print(
@@ -267,21 +270,32 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     return 0
 
 
+def run_evolution(
+    prog: str,
+    parser: argparse.ArgumentParser,
+    argv: list[str] | None,
+    run: Callable[[argparse.Namespace, GenerationBars], int],
+    kept: Callable[[argparse.Namespace], str],
+) -> int:
+    """The ``main`` of a command that evolves populations (``servobot.cli.runner.run_main``):
+    ``run(args, bars)`` with progress bars unless ``--no-progress``; Ctrl-C resumes with
+    ``--resume`` (and without ``--force``)."""
+
+    def body(args: argparse.Namespace, _command: str) -> int:
+        with contextlib.closing(GenerationBars(enabled=not args.no_progress)) as bars:
+            return run(args, bars)
+
+    return run_main(prog, parser, argv, body, kept, extra=["--resume"], drop=["--force"])
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``servobot evolve``; returns the exit code (0 ok, 2 bad input, 130 interrupted)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
-    bars = GenerationBars(enabled=not args.no_progress)
 
-    def interrupted() -> Interrupted:
+    def kept(args: argparse.Namespace) -> str:
         ckpt = args.out / args.stage / "checkpoints"
-        kept = f"the checkpoints in {ckpt}" if ckpt.is_dir() else "nothing yet"
-        return Interrupted(kept, command_line(PROG, argv, "--resume", drop=["--force"]))
+        return f"the checkpoints in {ckpt}" if ckpt.is_dir() else "nothing yet"
 
-    try:
-        return run_command(PROG, lambda: _run(args, bars), interrupted)
-    finally:
-        bars.close()
+    return run_evolution(PROG, build_parser(), argv, _run, kept)
 
 
 if __name__ == "__main__":

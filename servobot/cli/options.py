@@ -1,10 +1,14 @@
-"""Options shared by subcommands: ``--executor`` (``infra.executors``) for those that run
-batches, ``--envelope`` (``evolve.envelope``) for those that evolve."""
+"""Options that several subcommands share: ``--executor`` of those that run batches
+(``infra.executors``), ``--model`` of those that walk a robot model in physics, ``--envelope``
+(``evolve.envelope``) of those that evolve."""
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 from evolve.envelope import Envelope, load_envelope
 from infra.executors import (
@@ -16,6 +20,7 @@ from infra.executors import (
 )
 
 METAVAR = "|".join(EXECUTOR_SPECS)
+MODEL_HELP = "robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)"
 
 
 def executor_spec(text: str) -> str:
@@ -42,6 +47,13 @@ def add_executor_option(p: argparse.ArgumentParser, default: str | None, default
         "ray (a local Ray instance of --workers CPUs) or ray:ADDRESS (a running Ray cluster, "
         f"see docs/executors.md); default: {default_help}",
     )
+
+
+def add_model_option(
+    p: argparse.ArgumentParser, help: str = MODEL_HELP, type: Callable[[str], Any] = Path
+) -> None:
+    """Add ``--model FILE`` (default None: the shipped ServoBot), read as ``type``."""
+    p.add_argument("--model", type=type, default=None, metavar="FILE", help=help)
 
 
 def executor_from_args(args: argparse.Namespace) -> Executor:

@@ -15,8 +15,8 @@ from pathlib import Path
 from tqdm import tqdm
 
 from infra.bounds import check_int
-from servobot.cli.options import add_executor_option, executor_from_args
-from servobot.cli.runner import Interrupted, command_line, run_command
+from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
+from servobot.cli.runner import run_main
 from servobot.progress import GenerationBars
 from servobot.reproduce.report import format_seconds
 from servobot.reproduce.run import reproduce, resolve_settings
@@ -48,12 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="validation starts per finalist (default 20; --quick 3)",
     )
     add_executor_option(p, None, "process, serial with --workers 1 (validation runs)")
-    p.add_argument(
-        "--model",
-        default=None,
-        metavar="FILE",
-        help="robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)",
-    )
+    add_model_option(p, type=str)
     p.add_argument(
         "--force",
         action="store_true",
@@ -98,11 +93,8 @@ def _run(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``servobot reproduce``; returns the exit code (0 ok, 2 bad input, 130 interrupted)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
-
-    def interrupted() -> Interrupted:
-        kept = f"the finished stages and the evolution checkpoints in {args.out}"
-        return Interrupted(kept, command_line(PROG, argv, drop=["--force"]))
-
-    return run_command(PROG, lambda: _run(args), interrupted)
+    return run_main(
+        PROG, build_parser(), argv, lambda args, _command: _run(args),
+        lambda args: f"the finished stages and the evolution checkpoints in {args.out}",
+        drop=["--force"],
+    )  # fmt: skip

@@ -1,7 +1,8 @@
 """How every ``servobot`` subcommand ends: ``run_command``.
 
-A subcommand's ``main`` parses its arguments (argparse exits 2 on a malformed option) and
-hands the rest to ``run_command(prog, body, on_interrupt)``, which
+A subcommand's ``main`` is ``run_main(prog, parser, argv, body, kept)``: it parses the
+arguments (argparse exits 2 on a malformed option) and hands the rest to
+``run_command(prog, body, on_interrupt)``, which
 
 - runs ``body()`` and returns its exit code (0 done, 1 a run failed, e.g. physics);
 - turns an ``infra.errors.InputError`` (a file, option, output place, run folder or size that
@@ -18,6 +19,7 @@ Any other exception is a bug and keeps its traceback.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import shlex
@@ -101,6 +103,32 @@ def run_command(
             signal.signal(signal.SIGINT, old_int if old_int is not None else signal.SIG_DFL)
 
 
+def run_main(
+    prog: str,
+    parser: argparse.ArgumentParser,
+    argv: Sequence[str] | None,
+    body: Callable[[argparse.Namespace, str], int | None],
+    kept: Callable[[argparse.Namespace], str],
+    *,
+    extra: Sequence[str] = (),
+    drop: Sequence[str] = (),
+    again: str | None = None,
+) -> int:
+    """A subcommand's ``main``: parse ``argv`` (None: ``sys.argv[1:]``) and ``run_command``
+    ``body(args, command)``, ``command`` being the command line as typed. Interrupted, it says
+    that ``kept(args)`` is kept and resumes with the command line less ``drop`` plus
+    ``extra``, and ``again`` in parentheses (e.g. "the calibration starts again")."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(argv)
+    command = command_line(prog, argv)
+
+    def interrupted() -> Interrupted:
+        resume = command_line(prog, argv, *extra, drop=drop)
+        return Interrupted(kept(args), resume if again is None else f"{resume} ({again})")
+
+    return run_command(prog, lambda: body(args, command), interrupted)
+
+
 __all__ = [
     "EXIT_FAILED",
     "EXIT_INTERRUPTED",
@@ -110,4 +138,5 @@ __all__ = [
     "Terminated",
     "command_line",
     "run_command",
+    "run_main",
 ]

@@ -30,7 +30,7 @@ from evolve.trace import TEXT_HEADER, event_dict, event_line, summary_line, trac
 from infra.bounds import LIMITS, Need, check_need
 from infra.errors import InputError
 from infra.io import check_output_file
-from servobot.cli.runner import Interrupted, command_line, run_command
+from servobot.cli.runner import run_main
 
 PROG = "servobot trace"
 DEFAULT_WORLD = WorldSettings()
@@ -137,14 +137,13 @@ def _run(args: argparse.Namespace, out: TextIO) -> int:
 
 def main(argv: list[str] | None = None, *, stdout: TextIO | None = None) -> int:
     """Run ``servobot trace``; returns the exit code (0 ok, 2 bad input, 130 interrupted)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
 
-    def interrupted() -> Interrupted:
+    def kept(args: argparse.Namespace) -> str:
         rrd = "" if args.rrd is None else "; the unfinished recording was not written"
-        return Interrupted(f"the lines printed above{rrd}", command_line(PROG, argv))
+        return f"the lines printed above{rrd}"
 
-    return run_command(PROG, lambda: _run(args, stdout or sys.stdout), interrupted)
+    return run_main(PROG, build_parser(), argv,
+                    lambda args, _command: _run(args, stdout or sys.stdout), kept)  # fmt: skip
 
 
 if __name__ == "__main__":

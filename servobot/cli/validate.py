@@ -36,8 +36,8 @@ from infra.errors import InputError
 from servo_mj.robot.gaits import MAX_TARGET_RAD
 from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings
-from servobot.cli.options import add_executor_option, executor_from_args
-from servobot.cli.runner import EXIT_FAILED, Interrupted, command_line, run_command
+from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
+from servobot.cli.runner import EXIT_FAILED, run_main
 from servobot.validation.colony import check_colony_starts, validate_colony
 from servobot.validation.colony_report import colony_run_rows, colony_summary_lines
 from servobot.validation.lone import (
@@ -60,7 +60,8 @@ DEFAULT_OUT = Path("runs/validate")
 """Default output folder."""
 
 
-def parse_args(argv: list[str] | None) -> argparse.Namespace:
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``servobot validate``."""
     p = argparse.ArgumentParser(
         prog="servobot validate",
         description="Run a 16-gene chromosome (or an 8-gene navigation section, in navigation "
@@ -140,12 +141,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         metavar="RAD",
         help="servo-target noise std in physics, rad (default: PhysicsSettings, 0 = off)",
     )
-    p.add_argument(
-        "--model",
-        type=Path,
-        default=None,
-        metavar="FILE",
-        help="robot model file in physics, e.g. from 'servobot variant' (default: shipped); "
+    add_model_option(
+        p,
+        "robot model file in physics, e.g. from 'servobot variant' (default: shipped); "
         "a --table PATH must have been calibrated on it",
     )
     p.add_argument(
@@ -162,7 +160,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help="--out holds a validation with other inputs: delete its files (only those) first",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    return p.parse_args(argv)
+    return p
 
 
 def _check_options(args: argparse.Namespace, n_starts: int) -> None:
@@ -311,21 +309,17 @@ def _run(args: argparse.Namespace, command: str) -> int:
 def main(argv: list[str] | None = None) -> int:
     """Run ``servobot validate``; returns the exit code (0 ok, 1 physics errors, 2 bad input,
     130 interrupted)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = parse_args(argv)
-    command = command_line(PROG, argv)
 
-    def interrupted() -> Interrupted:
+    def kept(args: argparse.Namespace) -> str:
         done = sorted(p.name for p in args.out.glob("run*.rrd")) if args.rrd else []
         kept = (
             f"the recordings of finished runs in {args.out} ({', '.join(done) or 'none'})"
             if args.rrd
             else f"every earlier file in {args.out} as it was"
         )
-        kept += "; the report is written only when every run has finished"
-        return Interrupted(kept, f"{command} (validation starts again)")
+        return kept + "; the report is written only when every run has finished"
 
-    return run_command(PROG, lambda: _run(args, command), interrupted)
+    return run_main(PROG, build_parser(), argv, _run, kept, again="validation starts again")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from infra.io import check_output_file
 from servo_mj.robot.variant import VariantParams, read_variant, write_variant
-from servobot.cli.runner import Interrupted, command_line, run_command
+from servobot.cli.runner import run_main
 
 PROG = "servobot variant"
 
@@ -79,14 +79,8 @@ def _run(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``servobot variant``; 0 ok, 2 bad input or an impossible robot, 130 interrupted."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
-
-    def interrupted() -> Interrupted:
-        return Interrupted("nothing (the file is written only once checked)",
-                           command_line(PROG, argv))  # fmt: skip
-
-    return run_command(PROG, lambda: _run(args), interrupted)
+    return run_main(PROG, build_parser(), argv, lambda args, _command: _run(args),
+                    lambda _args: "nothing (the file is written only once checked)")  # fmt: skip
 
 
 if __name__ == "__main__":

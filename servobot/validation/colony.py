@@ -3,7 +3,8 @@
 ``validate_colony(bits, starts, ...)`` runs the 16-gene chromosome on R robots from every
 colony start ((N, R, 3) poses) twice — in the table world (``evolve.world.TableColony``) and
 in the MuJoCo arena with R ServoBots (``servo_mj.world.physics_colony.PhysicsColony``), both
-by ``evolve.interpreter.run_colony`` — and returns a report::
+by ``evolve.interpreter.run_colony`` — and returns a report (``servobot.validation.lone.validate``
+with ``colony_kind(colony)``: the same checks, run folder, executors and files)::
 
     {"runs": [{"index", "start": [{"x", "y", "h"}, ...],        # one per robot
                "table":   {"colony": {"squares", "inner_squares", "colony_steps",
@@ -30,56 +31,35 @@ the lone validation's run k, so R = 1 gives the lone validation's records.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
+from functools import partial
 from typing import Any
 
 import numpy as np
 
-from evolve.interpreter import END_NAMES, ColonyResult, RunResult, run_colony
+from evolve.interpreter import ColonyResult, RunResult, run_colony
 from evolve.settings import ColonySettings, WorldSettings
-from evolve.table import validate_table
 from evolve.world import TableColony
-from infra.executors import Executor, make_executor
-from servo_mj.robot.model import ModelFile
 from servo_mj.world.arena import ArenaSettings, default_robot
 from servobot.validation.colony_report import summarise_colony, write_colony_report
 from servobot.validation.lone import (
     MODE,
+    Job,
+    Kind,
     ValidationError,
-    check_chromosome,
-    check_run_options,
-    check_sizes,
     check_start,
-    execute,
-    jsonable,
-    report_head,
+    result_record,
     run_both_worlds,
     start_record,
-    validation_settings,
+    validate,
 )
 
 
-@dataclass(frozen=True)
-class ColonyJob:
-    """Everything one worker needs for one colony start (picklable plain data)."""
+@dataclass(frozen=True, kw_only=True)
+class ColonyJob(Job):
+    """One colony start: the R robots' start poses (x, y cm; heading deg) in ``start``."""
 
-    index: int
-    bits: np.ndarray
-    start: tuple[tuple[float, float, float], ...]
-    """The R robots' start poses (x, y cm; heading deg)."""
-    table: np.ndarray
-    world: WorldSettings
-    arena: ArenaSettings
     colony: ColonySettings
-    physics: Any
-    max_steps: int | None
-    rrd_path: str | None
-    seed: int = 0
-    """Seed of the robots' servo-noise generators (``robot_rngs(seed, index, R)``)."""
-    model: str | None = None
-    """The robots' model file (None = the shipped ServoBot)."""
 
 
 def check_colony_starts(
@@ -113,13 +93,7 @@ def check_colony_starts(
 
 def robot_record(res: RunResult) -> dict[str, Any]:
     """One robot's part of a colony run."""
-    return {
-        "squares": int(res.squares),
-        "inner_squares": int(res.inner_squares),
-        "docks": int(res.docks),
-        "steps": int(res.steps),
-        "end": {"code": int(res.end), "name": END_NAMES[int(res.end)]},
-        "final_pose": [round(float(v), 4) for v in res.final_pose],
+    return result_record(res) | {
         "collisions": int(res.collisions),
         "station_waits": int(res.station_waits),
     }
@@ -192,74 +166,37 @@ def run_colony_start(job: ColonyJob) -> dict[str, Any]:
     return run_both_worlds(out, rec, table_run, physics_run, last)
 
 
+def colony_kind(colony: ColonySettings) -> Kind:
+    """What runs at each start of a colony validation: R robots sharing the station."""
+    return Kind(
+        ColonyJob, run_colony_start, partial(check_colony_starts, colony=colony),
+        summarise_colony, write_colony_report, colony,
+    )  # fmt: skip
+
+
 def validate_colony(
     bits: np.ndarray,
     starts: np.ndarray,
     *,
     table: Any,
     colony: ColonySettings | None = None,
-    world: WorldSettings | None = None,
-    physics: Any = None,
-    arena: ArenaSettings | None = None,
-    out_dir: str | Path | None = None,
-    rrd: bool = False,
-    workers: int | None = None,
-    executor: Executor | None = None,
-    max_steps: int | None = None,
-    seed: int = 0,
-    model: ModelFile = None,
-    on_run: Callable[[dict[str, Any]], None] | None = None,
-    meta: dict[str, Any] | None = None,
-    force: bool = False,
+    **options: Any,
 ) -> dict[str, Any]:
     """Run ``bits`` (16, 30) on a colony from every colony start ((N, R, 3): x, y cm; h deg)
     in the table world and in physics. ``colony`` defaults to ``ColonySettings(robots=R)``;
-    ``max_steps`` bounds each robot's own gait steps (default 600). Everything else as
-    ``servobot.validation.lone.validate``, whose run folder, executors and errors it shares."""
-    world = world or WorldSettings()
-    arena = arena or ArenaSettings()
-    arr = check_chromosome(bits)
-    values = validate_table(getattr(table, "values", table))
+    ``max_steps`` bounds each robot's own gait steps (default 600). ``options`` are those of
+    ``servobot.validation.lone.validate`` (``world``, ``physics``, ``arena``, ``out_dir``,
+    ``rrd``, ``workers``, ``executor``, ``max_steps``, ``seed``, ``model``, ``on_run``,
+    ``meta``, ``force``), which runs it: the same run folder, executors and errors."""
     shape = np.shape(starts)
     colony = colony or ColonySettings(robots=shape[1] if len(shape) == 3 else 1)
-    poses = check_colony_starts(starts, world, arena, colony)
-    steps, out, rrd = check_run_options(max_steps, model, world, out_dir, rrd)
-    robot_steps = steps * colony.robots
-    disk = check_sizes(len(poses), robot_steps, None if executor else workers, rrd, seed)
-    settings = validation_settings(world, arena, physics, steps, seed, model)
-    settings["ColonySettings"] = jsonable(colony)
-    jobs = [
-        ColonyJob(
-            index=k,
-            bits=arr,
-            start=p,
-            table=values,
-            world=world,
-            arena=arena,
-            colony=colony,
-            physics=physics,
-            max_steps=max_steps,
-            seed=seed,
-            model=None if model is None else str(model),
-            rrd_path=str(out / f"run{k}.rrd") if rrd and out else None,
-        )  # fmt: skip
-        for k, p in enumerate(poses)
-    ]
-    head = report_head(arr, table, values, settings, meta)
-    record = {"chromosome": head["chromosome"], "table": head["table"]["values"],
-              "starts": [[list(q) for q in p] for p in poses], "settings": settings,
-              "rrd": rrd}  # fmt: skip
-    return execute(
-        jobs, run_colony_start, ex=executor or make_executor(None, workers), head=head,
-        summary=lambda runs, wall: summarise_colony(runs, world, wall),
-        write=lambda path, report, tracks: write_colony_report(path, report, tracks, world),
-        out=out, record=record, disk=disk, force=force, on_run=on_run,
-    )  # fmt: skip
+    return validate(bits, starts, table=table, kind=colony_kind(colony), **options)
 
 
 __all__ = [
     "ColonyJob",
     "check_colony_starts",
+    "colony_kind",
     "colony_record",
     "robot_record",
     "run_colony_start",

@@ -18,9 +18,27 @@ import numpy as np
 from evolve.figures import DPI, draw_arena, draw_colony_robot
 from evolve.settings import WorldSettings
 from infra.io import atomic_write
-from servobot.validation.report import markdown_document, write_report
+from servobot.validation.report import (
+    count_ends,
+    inner_delta,
+    markdown_document,
+    markdown_table,
+    physics_error,
+    pose_cell,
+    robot_cells,
+    summarise_runs,
+    summary_markdown,
+    write_report,
+)
 
 WORLDS = ("table", "physics")
+
+
+COLONY_GAP = (("inner_pct_pp", "inner_pct", 1.0), ("squares", "mean_squares", 1.0),
+              ("robot_inner_pct_pp", "robot_inner_pct", 1.0),
+              ("station_waits_per_run", "station_waits_per_run", 1.0),
+              ("collisions_per_run", "collisions_per_run", 1.0))  # fmt: skip
+"""The gap table − physics of a colony: (name, key of the world summaries, scale)."""
 
 
 def _world_summary(recs: list[dict[str, Any]], n_inner: int) -> dict[str, Any]:
@@ -31,9 +49,6 @@ def _world_summary(recs: list[dict[str, Any]], n_inner: int) -> dict[str, Any]:
     robots = [b for r in recs for b in r["robots"]]
     inner = np.array([c["inner_squares"] for c in colony], dtype=float)
     robot_inner = np.array([b["inner_squares"] for b in robots], dtype=float)
-    ends: dict[str, int] = {}
-    for b in robots:
-        ends[b["end"]["name"]] = ends.get(b["end"]["name"], 0) + 1
     out = {
         "runs": len(recs),
         "mean_squares": float(np.mean([c["squares"] for c in colony])),
@@ -47,7 +62,7 @@ def _world_summary(recs: list[dict[str, Any]], n_inner: int) -> dict[str, Any]:
         "dock_success": float(np.mean([b["docks"] > 0 for b in robots])),
         "station_waits_per_run": float(np.mean([c["station_waits"] for c in colony])),
         "collisions_per_run": float(np.mean([c["collisions"] for c in colony])),
-        "ends": ends,
+        "ends": count_ends(robots),
         "mean_wall_s": float(np.mean([r["wall_s"] for r in recs])),
     }
     lows = [r["min_distance_cm"] for r in recs if r.get("min_distance_cm") is not None]
@@ -60,37 +75,13 @@ def summarise_colony(
     runs: list[dict[str, Any]], world: WorldSettings, wall_s: float
 ) -> dict[str, Any]:
     """Summary of colony run records: per world, and the gap over runs whose physics finished."""
-    n_inner = world.inner_square_count
-    paired = [r for r in runs if r.get("table") and r.get("physics")]
-    t_pair = _world_summary([r["table"] for r in paired], n_inner)
-    p_pair = _world_summary([r["physics"] for r in paired], n_inner)
-    gap: dict[str, Any] = {"runs": len(paired)}
-    if paired:
-        diff = [r["table"]["colony"]["inner_squares"] - r["physics"]["colony"]["inner_squares"]
-                for r in paired]  # fmt: skip
-        gap.update(
-            inner_pct_pp=t_pair["inner_pct"] - p_pair["inner_pct"],
-            squares=t_pair["mean_squares"] - p_pair["mean_squares"],
-            robot_inner_pct_pp=t_pair["robot_inner_pct"] - p_pair["robot_inner_pct"],
-            station_waits_per_run=t_pair["station_waits_per_run"] - p_pair["station_waits_per_run"],
-            collisions_per_run=t_pair["collisions_per_run"] - p_pair["collisions_per_run"],
-            mean_abs_inner_diff=float(np.mean(np.abs(diff))),
-        )
-    return {
-        "starts": len(runs),
-        "robots": len(runs[0]["start"]) if runs else 0,
-        "physics_ok": len(paired),
-        "physics_errors": sum(1 for r in runs if r.get("error")),
-        "inner_squares_total": n_inner,
-        "table": _world_summary([r["table"] for r in runs if r.get("table")], n_inner),
-        "table_paired": t_pair,
-        "physics": p_pair,
-        "gap": gap,
-        "wall_s": round(wall_s, 3),
-    }
+    return summarise_runs(
+        runs, world, wall_s, _world_summary, COLONY_GAP, lambda r: r["colony"]["inner_squares"],
+        robots=len(runs[0]["start"]) if runs else 0,
+    )  # fmt: skip
 
 
-def _colony_cell(rec: dict[str, Any] | None) -> str:
+def _colony_cells(rec: dict[str, Any] | None) -> str:
     if rec is None:
         return "— | — | — | —"
     c = rec["colony"]
@@ -99,85 +90,66 @@ def _colony_cell(rec: dict[str, Any] | None) -> str:
 
 def colony_run_rows(report: dict[str, Any]) -> list[str]:
     """The per-start Markdown table of the colonies (also printed by the CLI)."""
-    rows = [
-        "| # | table sq | inner | waits | blocked | physics sq | inner | waits | blocked "
-        "| closest cm | Δ inner |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    rows = []
     for r in report["runs"]:
         t, p = r.get("table"), r.get("physics")
-        d = (
-            "—"
-            if not (t and p)
-            else f"{t['colony']['inner_squares'] - p['colony']['inner_squares']:+d}"
-        )
+        d = inner_delta(t and t["colony"], p and p["colony"])
         low = "—" if not p or p.get("min_distance_cm") is None else f"{p['min_distance_cm']:.1f}"
-        phys = f"{_colony_cell(p)} | {low}" if p else f"error: {r.get('error')} | | | |"
-        rows.append(f"| {r['index']} | {_colony_cell(t)} | {phys} | {d} |")
-    return rows
-
-
-def _robot_cell(b: dict[str, Any] | None) -> str:
-    if b is None:
-        return "— | — | — | — | —"
-    return (f"{b['squares']} | {b['inner_squares']} | {b['docks']} | {b['steps']} | "
-            f"{b['end']['name']}")  # fmt: skip
+        phys = f"{_colony_cells(p)} | {low}" if p else physics_error(r)
+        rows.append(f"| {r['index']} | {_colony_cells(t)} | {phys} | {d} |")
+    columns = ("# | table sq | inner | waits | blocked | physics sq | inner | waits | blocked "
+               "| closest cm | Δ inner")  # fmt: skip
+    return markdown_table(columns, rows)
 
 
 def robot_rows(report: dict[str, Any]) -> list[str]:
     """Every robot of every start, in both worlds (Markdown)."""
-    rows = [
-        "| # | robot | start x, y, h | table sq | inner | docks | steps | end | physics sq "
-        "| inner | docks | steps | end |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    rows = []
     for r in report["runs"]:
         t, p = r.get("table"), r.get("physics")
         for i, s in enumerate(r["start"]):
             tb = t["robots"][i] if t else None
             pb = p["robots"][i] if p else None
             rows.append(
-                f"| {r['index']} | {i} | {s['x']:.1f}, {s['y']:.1f}, {s['h']:.1f} | "
-                f"{_robot_cell(tb)} | {_robot_cell(pb)} |"
+                f"| {r['index']} | {i} | {pose_cell(s)} | {robot_cells(tb)} | {robot_cells(pb)} |"
             )
-    return rows
+    columns = ("# | robot | start x, y, h | table sq | inner | docks | steps | end | physics sq "
+               "| inner | docks | steps | end")  # fmt: skip
+    return markdown_table(columns, rows)
 
 
 def colony_summary_lines(report: dict[str, Any]) -> list[str]:
     """The summary as Markdown lines (also printed by the CLI)."""
     s = report["summary"]
-    lines = [
+    first = (
         f"- colonies of {s['robots']}: {s['starts']} starts, physics finished: "
         f"{s['physics_ok']}, physics errors: {s['physics_errors']}; wall time "
-        f"{s['wall_s']:.1f} s",
-    ]
-    for name, key in (("table (all runs)", "table"), ("table (paired)", "table_paired"),
-                      ("physics", "physics")):  # fmt: skip
-        w = s[key]
-        if not w.get("runs"):
-            lines.append(f"- {name}: no runs")
-            continue
+        f"{s['wall_s']:.1f} s"
+    )
+
+    def world_line(w: dict[str, Any], s: dict[str, Any]) -> str:
         closest = (
             f", closest centres {w['min_distance_cm']:.2f} cm" if "min_distance_cm" in w else ""
         )
-        lines.append(
-            f"- {name}: colony inner {w['mean_inner_squares']:.2f} = {w['inner_pct']:.1f}% of "
+        return (
+            f"colony inner {w['mean_inner_squares']:.2f} = {w['inner_pct']:.1f}% of "
             f"{s['inner_squares_total']} (squares {w['mean_squares']:.2f}); per robot inner "
             f"{w['robot_inner_pct']:.1f}%, docks {w['docks_per_robot']:.2f}, steps "
             f"{w['robot_mean_steps']:.0f}, ends {w['ends']}; per run station waits "
             f"{w['station_waits_per_run']:.2f}, blocked moves {w['collisions_per_run']:.2f}, "
             f"colony steps {w['mean_colony_steps']:.0f}{closest}; {w['mean_wall_s']:.2f} s/run"
         )
-    g = s["gap"]
-    if g.get("runs"):
-        lines.append(
+
+    def gap_line(g: dict[str, Any]) -> str:
+        return (
             f"- gap table − physics over {g['runs']} paired runs: colony inner "
             f"{g['inner_pct_pp']:+.1f} pp (per robot {g['robot_inner_pct_pp']:+.1f} pp), squares "
             f"{g['squares']:+.2f}, station waits {g['station_waits_per_run']:+.2f} and blocked "
             f"moves {g['collisions_per_run']:+.2f} per run, mean |Δ inner| per run "
             f"{g['mean_abs_inner_diff']:.2f}"
         )
-    return lines
+
+    return summary_markdown(report, first, world_line, gap_line)
 
 
 def colony_report_markdown(report: dict[str, Any]) -> str:

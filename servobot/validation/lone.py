@@ -27,8 +27,10 @@ the sizes are checked (``validation_need``) and ``out_dir`` is taken as a run fo
 ``force``, which deletes only ``VALIDATION_FILES``). An interrupted run's recording is
 discarded, never left truncated at its final path.
 
-A colony of R robots sharing the station (SPEC §7) is ``servobot.validation.colony``, which
-runs through this module's ``execute`` and ``run_both_worlds``.
+``validate`` is the one path of every validation: what runs at each start is its ``Kind``,
+one robot (``LONE``) or a colony of R robots sharing the station (SPEC §7,
+``servobot.validation.colony.colony_kind``); the checks, the run folder, the executor, the
+report and its files are the same code for both.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ import numpy as np
 from evolve import geometry
 from evolve.codec import FULL_GENES, SECTION_GENES, check_bits, format_chromosome
 from evolve.interpreter import END_NAMES, run
-from evolve.settings import WorldSettings
+from evolve.settings import ColonySettings, WorldSettings
 from evolve.starts import navigation_starts_where
 from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
@@ -80,12 +82,14 @@ class ValidationError(InputError, ValueError):
 
 
 @dataclass(frozen=True)
-class StartJob:
-    """Everything one worker needs for one start pose (picklable plain data)."""
+class Job:
+    """Everything one worker needs for one start (picklable plain data): one robot's
+    (``StartJob``) or a colony's (``servobot.validation.colony.ColonyJob``)."""
 
     index: int
     bits: np.ndarray
-    start: tuple[float, float, float]
+    start: Any
+    """The start pose (x, y cm; heading deg); a colony's: one per robot."""
     table: np.ndarray
     world: WorldSettings
     arena: ArenaSettings
@@ -93,9 +97,16 @@ class StartJob:
     max_steps: int | None
     rrd_path: str | None
     seed: int = 0
-    """Seed of this run's servo-noise generator: ``default_rng((seed, index))``."""
+    """Seed of the run's servo-noise generators: ``default_rng((seed, index))`` for one robot;
+    a colony's: ``servo_mj.world.physics_colony.robot_rngs(seed, index, R)``."""
     model: str | None = None
     """The robot's model file (None = the shipped ServoBot)."""
+
+
+@dataclass(frozen=True)
+class StartJob(Job):
+    """One robot's start pose."""
+
     mode: str = MODE
     """``MODE`` (a 16-gene chromosome) or ``NAVIGATION_MODE`` (an 8-gene section)."""
     power: float | None = None
@@ -235,7 +246,9 @@ def load_checked_table(spec: str, model: ModelFile = None) -> tuple[GaitTable, s
     return table, None
 
 
-def _record(res: Any, wall_s: float) -> dict[str, Any]:
+def result_record(res: Any) -> dict[str, Any]:
+    """One robot's run in one world (an ``evolve.interpreter.RunResult``): squares, inner
+    squares, docks, steps, how it ended and where."""
     return {
         "squares": int(res.squares),
         "inner_squares": int(res.inner_squares),
@@ -243,7 +256,6 @@ def _record(res: Any, wall_s: float) -> dict[str, Any]:
         "steps": int(res.steps),
         "end": {"code": int(res.end), "name": END_NAMES[int(res.end)]},
         "final_pose": [round(float(v), 4) for v in res.final_pose],
-        "wall_s": round(wall_s, 4),
     }
 
 
@@ -276,7 +288,7 @@ def run_start(job: StartJob) -> dict[str, Any]:
             job.bits, table_world, mode=job.mode, settings=job.world, start_power=job.power,
             max_steps=job.max_steps, on_event=None if rec is None else rec.table_event,
         )  # fmt: skip
-        return _record(res, time.perf_counter() - t0), res.track
+        return result_record(res) | {"wall_s": round(time.perf_counter() - t0, 4)}, res.track
 
     def physics_run(last: dict[str, Any]) -> tuple[dict[str, Any], np.ndarray]:
         t0 = time.perf_counter()
@@ -293,7 +305,7 @@ def run_start(job: StartJob) -> dict[str, Any]:
             job.bits, pw, mode=job.mode, settings=job.world, start_power=job.power,
             max_steps=job.max_steps, on_event=on_physics,
         )  # fmt: skip
-        return _record(res, time.perf_counter() - t0), res.track
+        return result_record(res) | {"wall_s": round(time.perf_counter() - t0, 4)}, res.track
 
     out = {"index": job.index, "start": start_record(job.start)}
     if job.power is not None:
@@ -484,6 +496,33 @@ def execute(
     return report
 
 
+@dataclass(frozen=True)
+class Kind:
+    """What runs at each start of a validation: one robot (``LONE``) or a colony of R robots
+    sharing the station (``servobot.validation.colony.colony_kind``). Everything else is one
+    path, ``validate``: the checks, the run folder, the executor, the report and its files."""
+
+    job: Callable[..., Job]
+    """One start's job: ``StartJob`` or ``ColonyJob``."""
+    work: Callable[[Any], Record]
+    """Runs one job in both worlds and gives its record: ``run_start``, ``run_colony_start``."""
+    check_starts: Callable[[Any, WorldSettings, ArenaSettings], list[Any]]
+    """The checked start poses: (N, 3) for one robot, (N, R, 3) for a colony."""
+    summarise: Callable[[list[Record], WorldSettings, float], dict[str, Any]]
+    """The report's summary of the runs, given their wall time."""
+    write: Callable[[Path, dict[str, Any], dict[str, np.ndarray], WorldSettings], None]
+    """Writes the report's files into the run folder."""
+    colony: ColonySettings | None = None
+    """The colony; None: one robot, which may be an 8-gene navigation section."""
+
+
+LONE = Kind(
+    StartJob, run_start, check_starts, summarise,
+    lambda out, report, tracks, _world: write_report(out, report, tracks),
+)  # fmt: skip
+"""One robot at each start."""
+
+
 def validate(
     bits: np.ndarray,
     starts: np.ndarray,
@@ -503,6 +542,7 @@ def validate(
     meta: dict[str, Any] | None = None,
     force: bool = False,
     powers: Any = None,
+    kind: Kind = LONE,
 ) -> dict[str, Any]:
     """Run ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the table and physics.
 
@@ -518,47 +558,49 @@ def validate(
     processes (None = one per core); records do not depend on where the runs ran. ``model``:
     the robot in physics (None = the shipped ServoBot, else a model file such as a
     ``servobot variant``; check the table against it with ``load_checked_table``).
-    ``on_run(record)`` is called as each run finishes (progress). Returns the report (and
-    writes it into ``out_dir`` when given). Raises ``infra.errors.InputError`` subclasses
-    (``ValidationError``, ``BoundsError``, ``RunDirError``, ...) on bad input, before any run.
+    ``on_run(record)`` is called as each run finishes (progress). ``kind``: what runs at each
+    start (``servobot.validation.colony.validate_colony`` passes a colony's; then ``starts``
+    is (N, R, 3), ``max_steps`` bounds each robot's own steps and ``powers`` is refused).
+    Returns the report (and writes it into ``out_dir`` when given). Raises
+    ``infra.errors.InputError`` subclasses (``ValidationError``, ``BoundsError``,
+    ``RunDirError``, ...) on bad input, before any run.
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
-    arr = check_chromosome(bits, sections=True)
+    colony = kind.colony
+    arr = check_chromosome(bits, sections=colony is None)
     mode = mode_of(arr)
     values = validate_table(getattr(table, "values", table))
-    poses = check_starts(starts, world, arena)
+    poses = kind.check_starts(starts, world, arena)
+    if colony is not None and powers is not None:
+        raise ValidationError("powers: a colony's robots start on world.start_power_v")
     volts = check_powers(powers, len(poses), world)
     steps, out, rrd = check_run_options(max_steps, model, world, out_dir, rrd, mode)
-    disk = check_sizes(len(poses), steps, None if executor else workers, rrd, seed)
+    robots = 1 if colony is None else colony.robots
+    disk = check_sizes(len(poses), steps * robots, None if executor else workers, rrd, seed)
     settings = validation_settings(world, arena, physics, steps, seed, model, mode)
-    jobs = [
-        StartJob(
-            index=k,
-            bits=arr,
-            start=p,
-            table=values,
-            world=world,
-            arena=arena,
-            physics=physics,
-            max_steps=max_steps,
-            seed=seed,
-            model=None if model is None else str(model),
-            rrd_path=str(out / f"run{k}.rrd") if rrd and out else None,
-            mode=mode,
-            power=volts[k],
-        )  # fmt: skip
-        for k, p in enumerate(poses)
-    ]
+    if colony is not None:
+        settings["ColonySettings"] = jsonable(colony)
+    common = {"bits": arr, "table": values, "world": world, "arena": arena, "physics": physics,
+              "max_steps": max_steps, "seed": seed,
+              "model": None if model is None else str(model)}  # fmt: skip
+
+    def job(k: int, start: Any) -> Job:
+        own = {"mode": mode, "power": volts[k]} if colony is None else {"colony": colony}
+        rrd_path = str(out / f"run{k}.rrd") if rrd and out else None
+        return kind.job(index=k, start=start, rrd_path=rrd_path, **common, **own)
+
+    jobs = [job(k, p) for k, p in enumerate(poses)]
     head = report_head(arr, table, values, settings, meta)
     record = {"chromosome": head["chromosome"], "table": head["table"]["values"],
-              "starts": [list(p) for p in poses], "settings": settings, "rrd": rrd}  # fmt: skip
+              "starts": jsonable(poses), "settings": settings, "rrd": rrd}  # fmt: skip
     if powers is not None:
         record["powers"] = volts
     return execute(
-        jobs, run_start, ex=executor or make_executor(None, workers), head=head,
-        summary=lambda runs, wall: summarise(runs, world, wall), write=write_report, out=out,
-        record=record, disk=disk, force=force, on_run=on_run,
+        jobs, kind.work, ex=executor or make_executor(None, workers), head=head,
+        summary=lambda runs, wall: kind.summarise(runs, world, wall),
+        write=lambda path, report, tracks: kind.write(path, report, tracks, world),
+        out=out, record=record, disk=disk, force=force, on_run=on_run,
     )  # fmt: skip
 
 
@@ -600,6 +642,9 @@ __all__ = [
     "NAVIGATION_MODE",
     "VALIDATION_FILES",
     "StartJob",
+    "Job",
+    "Kind",
+    "LONE",
     "ValidationError",
     "check_chromosome",
     "check_powers",
@@ -614,6 +659,7 @@ __all__ = [
     "mode_of",
     "physics_world",
     "report_head",
+    "result_record",
     "run_both_worlds",
     "run_start",
     "start_record",

@@ -1,0 +1,154 @@
+"""The files a validation writes, pinned: ``report.json``, ``report.md``, ``tracks.npz`` and
+``settings.json`` of short lone (coverage, navigation with start powers, a run whose physics
+blows up) and colony validations hash to what the code wrote before the lone and the colony
+validation shared one path (issue 18 §4). Wall times are left out of the hashes (they differ
+from run to run), and so is the npz's zip framing (it stamps the time): its arrays are hashed.
+
+The pins were made with the MuJoCo and NumPy versions in ``MADE_WITH``; physics results may
+differ in their last bits under others, so the test is skipped there. To pin new outputs on
+purpose: ``python3 tests/test_validation_pins.py`` prints the digests.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from chromosome_text import LIGHT_FOLLOWER
+
+from evolve.codec import parse_chromosome
+from evolve.settings import WorldSettings
+from evolve.table import PAPER_TABLE
+from infra.executors import SerialExecutor
+from servo_mj.robot.bot import PhysicsError
+from servo_mj.world import physics_world
+from servobot.validation.colony import validate_colony
+from servobot.validation.lone import validate
+
+MADE_WITH = {"mujoco": "3.17.0", "numpy": "2.4.6"}
+FILES = ("report.json", "report.md", "tracks.npz", "settings.json")
+GENE_8 = "01 0100000 0100000 0100000 0100000\n"
+BITS = parse_chromosome(GENE_8 * 16)
+STARTS = np.array([[400.0, 200.0, 300.0], [300.0, 300.0, 45.0]])
+SECTION = parse_chromosome(LIGHT_FOLLOWER)
+COLONY_STARTS = np.array([[[440.0, 235.0, 90.0], [440.0, 266.0, 90.0]],
+                          [[300.0, 300.0, 45.0], [200.0, 250.0, 180.0]]])  # fmt: skip
+LOW = WorldSettings(start_power_v=3.95)
+
+PINS = {
+    "lone": {
+        "report.json": "c19d44a4b5e053cae2ea700b35c806acf271cec34a6dca1def80d12e7778405a",
+        "report.md": "2a3ff3773fffbfc7b404a8d54b0b3c43b93af0a18d45384308e43b78e81b14eb",
+        "tracks.npz": "e20ed25784f89f63662d6aef0303ad0cb4ec47bf8dd1bc065028524be7b090e2",
+        "settings.json": "c2a70ee72428fe4fbcd15e6a29ec0fd1f374c341bae8f9f788dd11b35cfb6f17",
+    },
+    "navigation": {
+        "report.json": "b7eef16b7501813ec703ba454e3d4e8f51089a5f052f0bde147b2636a5d0fb39",
+        "report.md": "781894143afdea571c1d5f71fb09488d72fe721a1d29cb8406a45e2a8aedec17",
+        "tracks.npz": "55d3237b6d02ff0f3c8ddfdb295c763eddba2340c0860dca67a3cd8216ff2c0f",
+        "settings.json": "5a2c528939d222f678a0ab2bd6cf51cb66c68ca0ce820b6aaccfb9d041969ef9",
+    },
+    "blow_up": {
+        "report.json": "f8d35e1d21d3c48aca24009bec5399cedc563af8b68eff64fe0fd050df3e2702",
+        "report.md": "1a83ff477ba34300bb7b9d98c93b9feae532e44a30ca35effd68670da40e7c5c",
+        "tracks.npz": "007151dd59956b63bdf5acb123ebc85bfe698849b4229a3bac40eea293d354e8",
+        "settings.json": "e9d53eeba04258d3657138fcad11436a454301a471345ef6433dcf5a7cf4436e",
+    },
+    "colony": {
+        "report.json": "50e2849f7eece118fc655496fec82ed94dc3628920d0dcd79dfa7ba5e5f1f0ec",
+        "report.md": "a44929eec808bbdedff5647e3aa9c4bc2ad96b1c2749d38cbc9109cdaa5ca032",
+        "tracks.npz": "70f8dfeff74011074951b26c590a01af66a6670d039eb5fa10130ab9fdde8b27",
+        "settings.json": "3e839033965d0b6ebf3569cbc825f216959e29c6113108edf8ef15689c0ac859",
+    },
+}
+
+
+def _no_wall(obj: Any) -> Any:
+    """``obj`` without its wall times (keys ``wall_s`` and ``mean_wall_s``)."""
+    if isinstance(obj, dict):
+        return {k: _no_wall(v) for k, v in obj.items() if k not in ("wall_s", "mean_wall_s")}
+    if isinstance(obj, list):
+        return [_no_wall(v) for v in obj]
+    return obj
+
+
+def digest(path: Path) -> str:
+    """sha256 of a written file, its wall times left out (JSON: the keys, kept in their order;
+    Markdown: the numbers; npz: each array's name, dtype, shape and bytes, in file order)."""
+    if path.suffix == ".npz":
+        h = hashlib.sha256()
+        with np.load(path) as npz:
+            for name in npz.files:
+                arr = npz[name]
+                h.update(f"{name} {arr.dtype.str} {arr.shape}\n".encode())
+                h.update(np.ascontiguousarray(arr).tobytes())
+        return h.hexdigest()
+    text = path.read_text(encoding="utf-8")
+    if path.suffix == ".json":
+        text = json.dumps(_no_wall(json.loads(text)), indent=2)
+    else:
+        text = re.sub(r"wall time [0-9.]+ s", "wall time T s", text)
+        text = re.sub(r"[0-9.]+ s/run", "T s/run", text)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _blow_up(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Start 1's physics (y 300) fails at its third cycle: its run keeps the table record, an
+    error and the partial physics record."""
+    original = physics_world.PhysicsWorld.step
+
+    def step(self, gait):
+        if self.cycles == 2 and self.pose()[1] > 250.0:
+            raise PhysicsError("NaN in qvel (injected at the third cycle)")
+        return original(self, gait)
+
+    monkeypatch.setattr(physics_world.PhysicsWorld, "step", step)
+
+
+def write_case(case: str, out: Path) -> dict[str, Any]:
+    """Run one pinned validation into ``out``; returns its report."""
+    meta = {"case": case}
+    if case == "lone":
+        return validate(BITS, STARTS, table=PAPER_TABLE, workers=1, max_steps=12, seed=3,
+                        out_dir=out, meta=meta)  # fmt: skip
+    if case == "navigation":
+        return validate(SECTION, STARTS, table=PAPER_TABLE, executor=SerialExecutor(),
+                        powers=[4.0, 2.9], max_steps=15, out_dir=out, meta=meta)  # fmt: skip
+    if case == "blow_up":
+        return validate(BITS, STARTS, table=PAPER_TABLE, executor=SerialExecutor(), max_steps=6,
+                        out_dir=out, meta=meta)  # fmt: skip
+    return validate_colony(BITS, COLONY_STARTS, table=PAPER_TABLE, world=LOW, workers=1,
+                           max_steps=8, seed=2, out_dir=out, meta=meta)  # fmt: skip
+
+
+def digests(case: str, out: Path) -> dict[str, str]:
+    write_case(case, out)
+    return {name: digest(out / name) for name in FILES}
+
+
+@pytest.mark.skipif(
+    {"mujoco": __import__("mujoco").__version__, "numpy": np.__version__} != MADE_WITH,
+    reason=f"pins made with {MADE_WITH}",
+)
+@pytest.mark.parametrize("case", list(PINS))
+def test_a_validation_writes_the_pinned_files(case, tmp_path, monkeypatch):
+    if case == "blow_up":
+        _blow_up(monkeypatch)
+    assert digests(case, tmp_path) == PINS[case]
+
+
+if __name__ == "__main__":  # print the digests to pin
+    import tempfile
+
+    for name in PINS:
+        with tempfile.TemporaryDirectory() as tmp, pytest.MonkeyPatch.context() as mp:
+            if name == "blow_up":
+                _blow_up(mp)
+            print(f'    "{name}": {json.dumps(digests(name, Path(tmp)), indent=8)},')
+    sys.exit(0)
