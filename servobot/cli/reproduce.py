@@ -12,14 +12,12 @@ import os
 import sys
 from pathlib import Path
 
-from tqdm import tqdm
-
 from infra.bounds import check_int
 from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.cli.runner import Interrupted, command_line, run_command
-from servobot.progress import GenerationBars
-from servobot.reproduce.run import reproduce, resolve_settings
+from servobot.progress import GenerationBars, RunBar
 from servobot.reproduce.report import format_seconds
+from servobot.reproduce.run import reproduce, resolve_settings
 
 PROG = "servobot reproduce"
 
@@ -74,10 +72,9 @@ def _run(args: argparse.Namespace) -> int:
         model=args.model,
     )  # fmt: skip
     bars = GenerationBars(enabled=not args.no_progress)
-    runs = tqdm(
+    runs = RunBar(  # shown at its first run, not before the checks
+        "validation runs", not args.no_progress,
         total=settings.coverage_populations * settings.validate_starts,
-        desc="validation runs", unit="run", disable=args.no_progress, file=sys.stderr,
-        delay=1e-3,  # drawn at its first run, not before the checks
     )  # fmt: skip
     try:
         res = reproduce(
@@ -86,7 +83,7 @@ def _run(args: argparse.Namespace) -> int:
             workers=args.workers,
             executor=executor_from_args(args),
             on_generation=bars,
-            on_run=lambda _rec: runs.update(1),
+            on_run=runs,
             force=args.force,
         )
     finally:
