@@ -80,6 +80,10 @@ class ColonyJob:
     """Seed of the robots' servo-noise generators (``robot_rngs(seed, index, R)``)."""
     model: str | None = None
     """The robots' model file (None = the shipped ServoBot)."""
+    table_source: str = "array"
+    """Where ``table`` came from (``GaitTable.source``), for the recording's properties."""
+    command: str | None = None
+    """The command line that asked for the run, for the recording (None: ``sys.argv``)."""
 
 
 def check_colony_starts(
@@ -242,6 +246,8 @@ def validate_colony(
             seed=seed,
             model=None if model is None else str(model),
             rrd_path=str(out / f"run{k}.rrd") if rrd and out else None,
+            table_source=getattr(table, "source", "array"),
+            command=(meta or {}).get("command"),
         )  # fmt: skip
         for k, p in enumerate(poses)
     ]

@@ -100,6 +100,10 @@ class StartJob:
     """``MODE`` (a 16-gene chromosome) or ``NAVIGATION_MODE`` (an 8-gene section)."""
     power: float | None = None
     """Power at the start, volts (None = ``WorldSettings.start_power_v``)."""
+    table_source: str = "array"
+    """Where ``table`` came from (``GaitTable.source``), for the recording's properties."""
+    command: str | None = None
+    """The command line that asked for the run, for the recording (None: ``sys.argv``)."""
 
 
 def check_start(
@@ -547,6 +551,8 @@ def validate(
             rrd_path=str(out / f"run{k}.rrd") if rrd and out else None,
             mode=mode,
             power=volts[k],
+            table_source=getattr(table, "source", "array"),
+            command=(meta or {}).get("command"),
         )  # fmt: skip
         for k, p in enumerate(poses)
     ]
