@@ -115,8 +115,14 @@ def test_a_malformed_table_file_is_rejected_by_name(tmp_path) -> None:
 def test_cli_records_a_rerun_file(tmp_path) -> None:
     pytest.importorskip("servobot.recording")
     rrd = tmp_path / "cal.rrd"
-    assert cli.main(["--cycles", "1", "--out", str(tmp_path), "--rrd", str(rrd)]) == 0
+    argv = ["--cycles", "1", "--out", str(tmp_path), "--rrd", str(rrd)]
+    assert cli.main(argv) == 0
     assert rrd.stat().st_size > 10_000
+    from tests.test_recording import Rrd, assert_provenance
+
+    table = load_table(tmp_path / "gait_table.json")
+    assert_provenance(Rrd(rrd), table=table.values, source=str(tmp_path / "gait_table.json"),
+                      command="servobot calibrate " + " ".join(argv))  # fmt: skip
 
 
 def test_gap_diagnostic_residuals_are_zero_in_the_table_world_and_see_a_detuned_table() -> None:

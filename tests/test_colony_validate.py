@@ -128,6 +128,58 @@ def test_recording_holds_every_robot_and_the_station_timeline(station_run):
         assert res.returncode == 0, res.stderr[-2000:]
 
 
+def test_recording_lines_both_worlds_up_on_the_colony_step(station_run):
+    """The layout opens on ``colony_step``: there robot 0's table and physics poses are those of
+    the same robot step, a few cm apart (the reality gap); on ``sim_time``, which the worlds do
+    not share, the table world runs ahead by up to 20 gait cycles (32 s) in this run."""
+    out, _ = station_run
+    rrd = Rrd(out / "run0.rrd")
+    assert rrd.blueprint_value("time_panel", "TimePanelBlueprint:timeline") == [["colony_step"]]
+    base = "/world/robots/robot0"
+    seen = {}
+    for world in ("table", "physics"):
+        pose = f"{base}/{world}/pose"
+        seen[world] = {
+            "at": list(zip(rrd.column(pose, "colony_step", "colony_step"),
+                           rrd.column(pose, "step", "colony_step"), strict=True)),
+            "xy": np.array([t[0][:2] for t in rrd.column(pose, "Transform3D:translation",
+                                                         "colony_step")]),
+            "t": np.array(rrd.column(pose, "sim_time", "colony_step")) / 1e9,
+        }  # fmt: skip
+    table, physics = seen["table"], seen["physics"]
+    assert table["at"] == physics["at"]  # the same robot step at every colony step
+    assert np.linalg.norm(table["xy"] - physics["xy"], axis=1).max() < 0.20  # m
+    assert np.abs(table["t"] - physics["t"]).max() > 16.0  # s: sim_time would not line up
+
+
+def test_recording_contact_arrows_are_bounded(station_run):
+    """Pushing against the block the contact forces reach kN; every arrow is drawn at most
+    ``force_max_length_m`` long, the same in every recording."""
+    from servobot.recording import RecordingSettings
+
+    out, _ = station_run
+    rrd = Rrd(out / "run0.rrd")
+    bound = RecordingSettings().force_max_length_m
+    lengths = np.concatenate([
+        np.linalg.norm(np.array(v), axis=1)
+        for i in range(2)
+        for v in rrd.column(f"/world/robots/robot{i}/contacts", "Arrows3D:vectors", "colony_step")
+        if v
+    ])  # fmt: skip
+    assert lengths.max() <= bound * (1 + 1e-6)
+    assert (lengths > 0.999 * bound).any()  # some forces above 5 N: drawn clamped
+
+
+def test_recording_names_model_table_and_command(station_run):
+    import shlex
+
+    from tests.test_recording import assert_provenance
+
+    out, _ = station_run
+    assert_provenance(Rrd(out / "run0.rrd"), table=PAPER_TABLE, source="array",
+                      command=shlex.join(sys.argv))  # fmt: skip
+
+
 def test_one_robot_colony_validation_gives_the_lone_records():
     """The same starts, the same seeds: R = 1 in the colony validation gives the lone
     validation's records in both worlds, docking and charging included (the tracks, bit for

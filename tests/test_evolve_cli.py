@@ -265,6 +265,11 @@ def test_trace_rrd_records_the_table_run(forward, tmp_path, capsys):
     assert rows[f"{table}/track"] == 5  # one segment per step, from the start
     assert rows[f"{table}/squares"] == 2  # squares 55 and 56 newly reached
     assert any(p.startswith(f"{table}/pose/ghost/torso/geoms/") for p in static)
+    from evolve.table import PAPER_TABLE
+    from tests.test_recording import Rrd, assert_provenance
+
+    command = "servobot trace " + " ".join(argv)
+    assert_provenance(Rrd(rrd), table=PAPER_TABLE, source="paper", command=command)
 
 
 def test_stage_files_list_every_file_a_stage_writes(run_dir):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+import shlex
 import subprocess
 import sys
 from collections import defaultdict
@@ -109,8 +110,12 @@ class Rrd:
         return [v[0] for v in self.column(entity, column)]
 
     def blueprint_value(self, suffix: str, column: str) -> list:
-        (hit,) = [v for k, v in self.blueprint.items() if k.endswith(suffix)]
-        return hit[column]
+        (hit,) = self.blueprint_values(suffix, column)
+        return hit
+
+    def blueprint_values(self, suffix: str, column: str) -> list:
+        """``column`` of every blueprint entity ending in ``suffix`` (e.g. one per view)."""
+        return [v[column] for k, v in self.blueprint.items() if k.endswith(suffix) and column in v]
 
 
 def _columns(chunk) -> dict[str, list]:
@@ -123,6 +128,19 @@ def _columns(chunk) -> dict[str, list]:
         col = rb.column(names.index(n))  # durations and timestamps as integer nanoseconds
         out[n] = (col.cast("int64") if pa.types.is_temporal(col.type) else col).to_pylist()
     return out
+
+
+def assert_provenance(rrd: Rrd, *, table, source: str, command: str, model=None) -> None:
+    """The recording names its model (label, sha256), table (source, sha256) and command."""
+    from servo_mj.robot.model import model_label, model_sha256
+    from servobot.recording.provenance import table_sha256
+
+    prop = rrd.static_column
+    assert prop("/__properties/model", "label") == [[model_label(model)]]
+    assert prop("/__properties/model", "sha256") == [[model_sha256(model)]]
+    assert prop("/__properties/table", "source") == [[source]]
+    assert prop("/__properties/table", "sha256") == [[table_sha256(table)]]
+    assert prop("/__properties/command", "text") == [[command]]
 
 
 # --------------------------------------------------------------------------- geometry
@@ -265,19 +283,23 @@ def test_name_and_properties(table_rrd) -> None:
     assert rrd.static_column("/__properties/start", "x_cm") == [[250.0]]
 
 
-def test_blueprint_opens_expanded_on_sim_time_with_trails(table_rrd) -> None:
+def test_blueprint_opens_expanded_on_the_step_timeline_with_trails(table_rrd) -> None:
     rrd, *_ = table_rrd
-    assert rrd.blueprint_value("time_panel", "TimePanelBlueprint:timeline") == [["sim_time"]]
+    # ``step``: the timeline both worlds share, played at 8 × 1.6 s a step = 5 steps a second.
+    assert rrd.blueprint_value("time_panel", "TimePanelBlueprint:timeline") == [["step"]]
+    assert rrd.blueprint_value("time_panel", "TimePanelBlueprint:fps") == [[pytest.approx(5.0)]]
     for panel in ("time_panel", "blueprint_panel", "selection_panel"):
         (state,) = [v for k, v in rrd.blueprint[f"/{panel}"].items() if k.endswith(":state")]
         assert np.ravel(state).tolist() == [3], panel  # PanelState.Expanded
     for world in ("physics", "table"):
         for part in ("track", "squares"):
-            ranges = rrd.blueprint_value(
+            ranges = rrd.blueprint_values(
                 f"/overrides/world/robots/servobot/{world}/{part}/visualizers",
                 "VisibleTimeRanges:ranges",
             )
-            assert {r["timeline"] for r in ranges[0]} == {"step", "sim_time"}
+            assert len(ranges) == 2  # the arena and the follow view
+            for r in ranges:
+                assert {tr["timeline"] for tr in r[0]} == {"step", "sim_time"}
     # The robot's own state is not a trail: no override on its bodies.
     assert not [k for k in rrd.blueprint if "overrides/world/robots/servobot/bodies" in k]
 
@@ -327,6 +349,7 @@ def test_validation_run_name_properties_and_timelines(physics_rrd) -> None:
     f = rrd.static_column("/__properties/gait_table", "F_cm")[0]
     np.testing.assert_allclose(f, np.asarray(PAPER_TABLE)[:, 0])
     assert "01 0111000" in rrd.static_column("/__properties/chromosome", "text")[0][0]
+    assert_provenance(rrd, table=PAPER_TABLE, source="array", command=shlex.join(sys.argv))
     # The table world's times are those of the same steps in physics.
     table_t = rrd.column(f"{ROBOT}/table/pose", "sim_time")
     steps = rrd.column(f"{ROBOT}/table/pose", "step")
@@ -360,9 +383,10 @@ def test_contacts_carry_the_robots_weight_and_it_stands_level(physics_rrd) -> No
     standing = force[-16:]  # the last step: gait 7, at rest
     np.testing.assert_allclose(standing.sum(axis=1), weight, rtol=0.02)
     assert (standing > 0).sum(axis=1).min() >= 3  # on at least three feet
-    vectors = rrd.column(f"{ROBOT}/contacts", "Arrows3D:vectors")[-1]
-    scale = RecordingSettings().force_scale_m_per_n
-    assert sum(v[2] for v in vectors) / scale == pytest.approx(weight, rel=0.02)
+    vectors = np.array(rrd.column(f"{ROBOT}/contacts", "Arrows3D:vectors")[-1])
+    s = RecordingSettings()
+    assert np.linalg.norm(vectors, axis=1).max() < s.force_max_length_m  # none clamped
+    assert vectors[:, 2].sum() / s.force_scale_m_per_n == pytest.approx(weight, rel=0.02)
     att = np.array(rrd.column("/plots/attitude/servobot", "Scalars:scalars"))
     assert np.abs(att[-16:]).max() < 3.0  # roll and pitch, deg
 
@@ -436,7 +460,72 @@ def test_calibration_walks_side_by_side_without_jumps(tmp_path) -> None:
         assert rrd.rows[f"/plots/calibration/F/gait_{g:02d}"] == 1
     np.testing.assert_allclose(rrd.static_column("/__properties/result", "F_cm")[0],
                                res.values[:, 0])  # fmt: skip
+    assert_provenance(rrd, table=res.values, source=str(res.table_path),
+                      command=shlex.join(sys.argv))  # fmt: skip
+    # The settings name the model (not a bare None, which the viewer shows as "null").
+    assert "shipped ServoBot" in rrd.static_column("/__properties/calibration", "model")[0][0]
+    # One world: the time panel opens on the smooth ``sim_time``; a tab per gait.
     assert rrd.blueprint_value("time_panel", "TimePanelBlueprint:timeline") == [["sim_time"]]
+    tabs = {v[0][0] for v in rrd.blueprint_values("", "ContainerBlueprint:display_name")}
+    assert {f"gait {g}" for g in range(16)} <= tabs
+
+
+# --------------------------------------------------------------------------- display rules
+def test_force_arrows_scale_then_clamp_keeping_the_direction() -> None:
+    from servobot.recording.robot import force_arrows
+
+    f = np.array([[0.0, 0.0, 2.0], [3.0, 4.0, 0.0], [0.0, 0.0, 0.0], [-2770.0, 0.0, 0.0]])
+    a = force_arrows(f, 0.02, 0.10)
+    np.testing.assert_allclose(a[0], [0.0, 0.0, 0.04])  # 2 N: 4 cm
+    np.testing.assert_allclose(a[1], [0.06, 0.08, 0.0])  # 5 N: exactly the 10 cm bound
+    np.testing.assert_allclose(a[2], 0.0)
+    np.testing.assert_allclose(a[3], [-0.10, 0.0, 0.0])  # 2770 N (a colony run): 10 cm
+
+
+def test_plots_split_into_runs_of_at_most_the_bound() -> None:
+    from servobot.recording.blueprint import chunks
+
+    assert chunks(list(range(6)), 6) == [list(range(6))]
+    assert chunks(list(range(7)), 6) == [[0, 1, 2, 3], [4, 5, 6]]
+    assert chunks(list(range(16)), 6) == [list(range(6)), list(range(6, 11)), list(range(11, 16))]
+    assert chunks([], 6) == []
+
+
+def test_blueprint_plots_hold_few_series_and_follow_each_robot() -> None:
+    from servobot.recording.blueprint import Contents, make_blueprint, playback_fps
+
+    c = Contents(timelines={"sim_time", "step", "colony_step"}, colony=True, detail=True)
+    for i in range(5):
+        c.robots.append(f"robot{i}")
+        c.follow.add(f"robot{i}")
+        c.worlds += [(f"robot{i}", "table"), (f"robot{i}", "physics")]
+    s = RecordingSettings()
+    assert playback_fps(c, s) == pytest.approx(8.0 / (1.6 * 5))  # a colony step: 5 turns
+    path = Path(os.environ.get("TMPDIR", "/tmp")) / f"bp_{os.getpid()}.rrd"
+    make_blueprint(c, s).save("servobot-test", str(path))
+    try:
+        reader = rr.chunk.RrdReader(path)
+        (bp,) = reader.blueprints()
+        views = {}
+        for chunk in reader.stream(store=bp).collect().stream():
+            cols = _columns(chunk)
+            if "ViewBlueprint:class_identifier" in cols:
+                views.setdefault(chunk.entity_path, {}).update(cols)
+            elif "ViewContents:query" in cols:
+                views.setdefault(chunk.entity_path.rsplit("/", 1)[0], {}).update(cols)
+    finally:
+        path.unlink(missing_ok=True)
+    names = {v["ViewBlueprint:display_name"][0][0]: v for v in views.values()
+             if "ViewBlueprint:display_name" in v}  # fmt: skip
+    assert {f"follow robot{i}" for i in range(5)} <= set(names)
+    follow = names["follow robot3"]
+    assert follow["ViewBlueprint:space_origin"] == [["world/robots/robot3/follow"]]
+    # Power of 5 robots × 2 worlds: one plot per world, 5 series each.
+    power = [n for n in names if n.startswith("power")]
+    assert sorted(power) == ["power (V), physics", "power (V), table"]
+    for n in power:
+        (query,) = names[n]["ViewContents:query"]
+        assert len(query) == 5 <= s.max_plot_series
 
 
 # --------------------------------------------------------------------------- API
@@ -483,9 +572,9 @@ def test_two_robots_share_one_recording(tmp_path: Path) -> None:
         assert rrd.rows[f"/plots/power/{name}/physics"] == len(events)
         rgba = rrd.static_column(f"/world/robots/{name}/physics/track", "LineStrips3D:colors")
         assert rgba[0][0] >> 8 == (color[0] << 16) | (color[1] << 8) | color[2]
-        assert rrd.blueprint_value(
+        assert all(rrd.blueprint_values(
             f"/overrides/world/robots/{name}/physics/track/visualizers", "VisibleTimeRanges:ranges"
-        )
+        ))  # fmt: skip
 
 
 def test_failed_run_leaves_no_file(tmp_path: Path) -> None:

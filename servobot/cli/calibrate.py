@@ -126,7 +126,8 @@ def _run(args: argparse.Namespace, command: str) -> int:
             from servobot.recording import Recording, calibration_recorder, log_calibration_result
 
             with Recording.for_calibration(args.rrd) as rec:
-                res = calibrate(args.out, settings, **calibration_recorder(rec, settings), **kwargs)
+                rec_kw = calibration_recorder(rec, settings, command)
+                res = calibrate(args.out, settings, **rec_kw, **kwargs)
                 log_calibration_result(rec, res)
     except (PhysicsError, BatchError) as exc:
         print(f"{PROG}: physics failed: {exc}", file=sys.stderr)

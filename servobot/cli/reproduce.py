@@ -9,15 +9,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 from pathlib import Path
-
-from tqdm import tqdm
 
 from infra.bounds import check_int
 from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
 from servobot.cli.runner import run_main
-from servobot.progress import GenerationBars
+from servobot.progress import GenerationBars, RunBar
 from servobot.reproduce.report import format_seconds
 from servobot.reproduce.run import reproduce, resolve_settings
 
@@ -69,10 +66,9 @@ def _run(args: argparse.Namespace) -> int:
         model=args.model,
     )  # fmt: skip
     bars = GenerationBars(enabled=not args.no_progress)
-    runs = tqdm(
+    runs = RunBar(  # shown at its first run, not before the checks
+        "validation runs", not args.no_progress,
         total=settings.coverage_populations * settings.validate_starts,
-        desc="validation runs", unit="run", disable=args.no_progress, file=sys.stderr,
-        delay=1e-3,  # drawn at its first run, not before the checks
     )  # fmt: skip
     try:
         res = reproduce(
@@ -81,7 +77,7 @@ def _run(args: argparse.Namespace) -> int:
             workers=args.workers,
             executor=executor_from_args(args),
             on_generation=bars,
-            on_run=lambda _rec: runs.update(1),
+            on_run=runs,
             force=args.force,
         )
     finally:

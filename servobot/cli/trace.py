@@ -92,7 +92,7 @@ def _check(args: argparse.Namespace, world: WorldSettings, genes: int) -> str:
     return mode
 
 
-def _run(args: argparse.Namespace, out: TextIO) -> int:
+def _run(args: argparse.Namespace, out: TextIO, command: str) -> int:
     world = DEFAULT_WORLD
     bits = read_chromosome(args.chromosome)
     mode = _check(args, world, bits.shape[0])
@@ -118,8 +118,8 @@ def _run(args: argparse.Namespace, out: TextIO) -> int:
     else:
         from servobot.recording import RunRecorder  # lazy: rerun only when asked for
 
-        with RunRecorder.for_trace(args.rrd, bits, start, mode=mode, table=table,
-                                   world=world, source=args.chromosome) as rec:  # fmt: skip
+        with RunRecorder.for_trace(args.rrd, bits, start, mode=mode, table=table, world=world,
+                                   source=args.chromosome, command=command) as rec:  # fmt: skip
 
             def emit_and_record(e: StepEvent) -> None:
                 emit(e)
@@ -143,7 +143,8 @@ def main(argv: list[str] | None = None, *, stdout: TextIO | None = None) -> int:
         return f"the lines printed above{rrd}"
 
     return run_main(PROG, build_parser(), argv,
-                    lambda args, _command: _run(args, stdout or sys.stdout), kept)  # fmt: skip
+                    lambda args, command: _run(args, stdout or sys.stdout, command),
+                    kept)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from evolve.codec import SECTION_GENES, ChromosomeError, read_chromosome
 from evolve.handoff import read_poses
@@ -38,6 +37,7 @@ from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings
 from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
 from servobot.cli.runner import EXIT_FAILED, run_main
+from servobot.progress import RunBar
 from servobot.validation.colony import check_colony_starts, validate_colony
 from servobot.validation.colony_report import colony_run_rows, colony_summary_lines
 from servobot.validation.lone import (
@@ -266,10 +266,10 @@ def _run(args: argparse.Namespace, command: str) -> int:
     arena = ArenaSettings()
     if args.station_height is not None:
         arena = dataclasses.replace(arena, station_height_m=args.station_height)
-    bar = tqdm(total=len(starts), desc="validate", unit="start", disable=args.no_progress)
+    bar = RunBar("validate", not args.no_progress, total=len(starts), unit="start")
 
     def on_run(rec: dict[str, Any]) -> None:
-        bar.update(1)
+        bar()
         if rec.get("error"):
             bar.write(f"run {rec['index']}: {rec['error']}")
 

@@ -2,7 +2,8 @@
 
 Everything is logged once with ``static=True`` under ``world/arena/``, in metres on z ≈ 0:
 ``floor``, ``walls``, ``station``, ``lights``, ``squares``, ``contact_zones``, ``inner``,
-``kill_zone``, ``cones`` (the lit cones' edges), ``dark`` (the dark area, filled); or, for a
+``kill_zone``, ``cones`` (the lit cones' edges), ``dark`` (the dark area, filled), ``labels``
+(the names of the lights and the station, beyond the east wall); or, for a
 calibration, ``floor``, ``grid`` (1 m lines) and ``starts`` (each walk's start, labelled).
 """
 
@@ -21,6 +22,10 @@ from servobot.recording.frames import arena_to_m, rect_strip
 from servobot.recording.style import RecordingSettings
 
 FLOOR_COLOR = (225, 215, 190)
+LABEL_OUTSIDE_M = 0.25
+"""How far beyond the east wall the names of the lights and the station stand, m."""
+LABEL_SPREAD_M = 0.45
+"""How far the lights' names stand beyond their lights, away from the station (along y), m."""
 
 
 def log_arena(rec: rr.RecordingStream, world: WorldSettings, s: RecordingSettings) -> None:
@@ -56,7 +61,6 @@ def log_walls(rec: rr.RecordingStream, world: WorldSettings, s: RecordingSetting
             half_sizes=[[d / 2, sw / 2, sh / 2]],
             colors=[(90, 90, 200)],
             fill_mode="solid",
-            labels=["station"],
         ),
         static=True,
     )
@@ -104,16 +108,9 @@ def log_grid(rec: rr.RecordingStream, world: WorldSettings, s: RecordingSettings
 def log_light(rec: rr.RecordingStream, world: WorldSettings, s: RecordingSettings) -> None:
     """The light sources, the edges of each lit cone and the dark area (filled)."""
     lights = np.array([[*arena_to_m(x, y), 0.1] for x, y in world.lights])
-    rec.log(
-        "world/arena/lights",
-        rr.Points3D(
-            lights,
-            radii=0.03,
-            colors=[(255, 230, 0)],
-            labels=[f"light {k}" for k in range(len(lights))],
-        ),
-        static=True,
-    )
+    rec.log("world/arena/lights", rr.Points3D(lights, radii=0.03, colors=[(255, 230, 0)]),
+            static=True)  # fmt: skip
+    log_labels(rec, world)
     z = 3 * s.plane_z_m
     edges = []
     for lx, ly in world.lights:
@@ -142,6 +139,25 @@ def log_light(rec: rr.RecordingStream, world: WorldSettings, s: RecordingSetting
             ),
             static=True,
         )
+
+
+def log_labels(rec: rr.RecordingStream, world: WorldSettings) -> None:
+    """Names of the lights and the station beyond the east wall, each light's moved
+    ``LABEL_SPREAD_M`` further from the station and higher than the station's, so that they
+    cover neither each other nor a robot at the dock."""
+    x = world.arena_size / CM_PER_M + LABEL_OUTSIDE_M
+    sy = world.station_y / CM_PER_M
+    pos, labels, colors = [[x, sy, 0.25]], ["station"], [(90, 90, 200)]
+    for k, (lx, ly) in enumerate(world.lights):
+        y = arena_to_m(lx, ly)[1]
+        pos.append([x, y + math.copysign(LABEL_SPREAD_M, y - sy), 0.35])
+        labels.append(f"light {k}")
+        colors.append((255, 230, 0))
+    rec.log(
+        "world/arena/labels",
+        rr.Points3D(pos, radii=0.01, colors=colors, labels=labels, show_labels=True),
+        static=True,
+    )
 
 
 def log_calibration_floor(
@@ -239,4 +255,4 @@ def dark_polygons(world: WorldSettings) -> list[list[tuple[float, float]]]:
     return polys
 
 
-__all__ = ["dark_polygons", "log_arena", "log_calibration_floor"]
+__all__ = ["dark_polygons", "log_arena", "log_calibration_floor", "log_labels"]

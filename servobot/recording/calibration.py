@@ -16,6 +16,10 @@ import numpy as np
 import rerun as rr
 
 from servobot.recording.columns import ColumnBuffer, Times, scalars
+from servobot.recording.provenance import command_text, table_sha256
+
+SERIES = (("F", "cm"), ("T", "cm"), ("dH", "deg"))
+"""The measured quantities of a calibration cycle and their units."""
 
 
 def gait_robot(gait: int) -> str:
@@ -29,6 +33,7 @@ class CalibrationCycles:
     def __init__(self) -> None:
         self.per_gait: dict[int, ColumnBuffer] = {}
         self.log = ColumnBuffer("calibration log")
+        self.styled: set[int] = set()
 
     def add(self, gait: int, F: float, T: float, dH: float, times: Times) -> None:
         """One measured cycle at ``times`` (``cycle`` and ``sim_time``)."""
@@ -42,8 +47,14 @@ class CalibrationCycles:
             if not buf.n:
                 continue
             index = buf.time_columns()
-            for comp in ("F", "T", "dH"):
-                scalars(rec, f"plots/calibration/{comp}/{gait_robot(gait)}", index, buf.array(comp))
+            for comp, unit in SERIES:
+                path = f"plots/calibration/{comp}/{gait_robot(gait)}"
+                if gait not in self.styled:  # each cycle a point, joined by lines
+                    name = [f"{comp} {unit}"]
+                    rec.log(path, rr.SeriesLines(names=name), static=True)
+                    rec.log(path, rr.SeriesPoints(names=name, marker_sizes=[3.0]), static=True)
+                scalars(rec, path, index, buf.array(comp))
+            self.styled.add(gait)
             buf.clear()
         if self.log.n:
             rec.send_columns(
@@ -54,11 +65,13 @@ class CalibrationCycles:
             self.log.clear()
 
 
-def calibration_recorder(rec: Any, settings: Any) -> dict[str, Any]:
+def calibration_recorder(rec: Any, settings: Any, command: str | None = None) -> dict[str, Any]:
     """Keyword arguments of ``calibration.calibrate.calibrate`` that record its walks in the
     ``Recording`` ``rec``: the calibration scene's model, ``on_frame`` (each gait robot's
     bodies, servos, contacts and feet every servo frame) and ``on_cycle`` (F, T, dH of each
-    measured cycle). Also logs the floor, the starts and the settings as properties."""
+    measured cycle). Also logs the floor, the starts, and the settings, the model and
+    ``command`` (None: ``sys.argv``) as properties; ``log_calibration_result`` adds the
+    measured table."""
     import mujoco
 
     from calibration.measure import start_pose
@@ -71,8 +84,9 @@ def calibration_recorder(rec: Any, settings: Any) -> dict[str, Any]:
     starts = [start_pose(g, settings.start_spacing_cm)[:2] for g in range(N_GAITS)]
     rec.log_calibration_floor(starts, [f"gait {g}: {GAIT_KIND[g]}" for g in range(N_GAITS)])
     rec.log_properties(
-        calibration=settings.to_dict(),
+        calibration=settings.to_dict() | {"model": model_label(settings.model)},
         model={"label": model_label(settings.model), "sha256": model_sha256(settings.model)},
+        command={"text": command_text(command)},
     )
     for g in range(N_GAITS):
         rec.log_robot_model(model, robot=gait_robot(g))
@@ -92,10 +106,12 @@ def calibration_recorder(rec: Any, settings: Any) -> dict[str, Any]:
 
 
 def log_calibration_result(rec: Any, result: Any) -> None:
-    """The measured gait table (a ``CalibrationResult``) as the recording's ``result``."""
+    """The measured gait table (a ``CalibrationResult``) as the recording's ``result``, and
+    the file it was written to as its ``table`` (source, sha256 of the values)."""
     from calibration.report import within_tolerance
 
     values, std = np.asarray(result.values), np.asarray(result.std)
+    rec.log_properties(table={"source": str(result.table_path), "sha256": table_sha256(values)})
     rec.log_properties(
         result={
             "F_cm": values[:, 0], "T_cm": values[:, 1], "dH_deg": values[:, 2],

@@ -6,6 +6,7 @@ and, when the caller gives times, ``sim_time``)::
 
     world/robots/R/W/pose                 Transform3D: the pose after the event (on the floor)
     world/robots/R/W/pose/heading         static arrow along the heading
+    world/robots/R/W/pose/label           static: the world's name above the robot
     world/robots/R/W/pose/sensors         the active sensors' spans, drawn on the robot:
                                           object spans (red, 50 cm), light spans (yellow)
     world/robots/R/W/pose/ghost/<body>    static translucent robot (``Recording.log_ghost``)
@@ -33,9 +34,12 @@ from servobot.recording.style import (
     LIGHT_SPAN_COLOR,
     MODES,
     OBJECT_SPAN_COLOR,
+    SENSOR_COLORS,
+    SENSOR_LABELS,
     SENSORS,
     RecordingSettings,
     Rgb,
+    label_height_m,
 )
 
 _WARN_KINDS = ("end", "dock", "charge")
@@ -208,20 +212,30 @@ class WorldEvents:
             f"{self.base}/pose/heading",
             rr.Arrows3D(
                 origins=[[0.0, 0.0, 2 * s.track_z_m]], vectors=[[s.arrow_length_m, 0.0, 0.0]],
-                colors=[color], radii=0.008, labels=[self._label()],
+                colors=[color], radii=0.008,
             ),
         )  # fmt: skip
+        # The world's name above the robot, each world at its own height, so the labels of
+        # both worlds (and the lights' and station's, at the dock) do not cover each other.
+        log(
+            f"{self.base}/pose/label",
+            rr.Points3D([[0.0, 0.0, label_height_m(self.name)]], radii=0.004, colors=[color],
+                        labels=[self._label()], show_labels=True),
+        )  # fmt: skip
         log(f"{self.base}/pose/sensors", rr.LineStrips3D.from_fields(radii=0.003))
-        for path, label in (("power", "power V"), ("mode", "mode"), ("squares", "squares")):
-            log(f"plots/{path}/{p}", rr.SeriesLines(colors=[color], names=[f"{label} {p}"]))
-        for k, (sensor, _) in enumerate(SENSORS):
+        # Series names: the plot's title names the quantity (and the world, in a colony); the
+        # mode shares a plot with the sensors of its robot and world.
+        series = self.name if self.robot == DEFAULT_ROBOT else self.robot
+        for path, name in (("power", series), ("squares", series), ("mode", "mode")):
+            log(f"plots/{path}/{p}", rr.SeriesLines(colors=[color], names=[name]))
+        for sensor, _ in SENSORS:
             log(
                 f"plots/sensors/{p}/{sensor}",
-                rr.SeriesLines(names=[f"{sensor} {p}"], widths=[2.0 if k % 2 else 1.0]),
+                rr.SeriesLines(names=[SENSOR_LABELS[sensor]], colors=[SENSOR_COLORS[sensor]]),
             )
         log(
             f"plots/pose/{p}",
-            rr.SeriesLines(names=[f"{a} {p}" for a in ("x cm", "y cm", "heading deg")]),
+            rr.SeriesLines(names=[f"{a} {self.name}" for a in ("x", "y", "heading")]),
         )
 
 

@@ -32,15 +32,20 @@ from servobot.recording.robot import RobotIndex, RobotRecorder
 from servobot.recording.shapes import log_body_shapes, log_ghost_shapes
 from servobot.recording.style import DEFAULT_ROBOT, RecordingSettings, Rgb, tint, world_color
 
+NONE_TEXT = "none"
+"""How a property field that is None reads in the viewer (JSON's ``null`` reads as missing)."""
+
 
 def property_values(value: Any) -> rr.AnyValues:
     """A property as rerun ``AnyValues``: a mapping gives one field per key (numbers, text
-    and number arrays as they are, anything else as JSON text); any other value one field
-    ``value``."""
+    and number arrays as they are, None as ``NONE_TEXT``, anything else as JSON text); any
+    other value one field ``value``."""
     fields = value if isinstance(value, Mapping) else {"value": value}
     out: dict[str, Any] = {}
     for k, v in fields.items():
-        if isinstance(v, np.ndarray | list | tuple) and np.asarray(v).dtype.kind in "biuf":
+        if v is None:
+            out[str(k)] = NONE_TEXT
+        elif isinstance(v, np.ndarray | list | tuple) and np.asarray(v).dtype.kind in "biuf":
             out[str(k)] = np.asarray(v)
         elif isinstance(v, str | bool | int | float | np.generic):
             out[str(k)] = v
@@ -146,6 +151,8 @@ class Recording:
         self._robots[robot] = RobotRecorder(robot, index, self.settings)
         if robot not in self.contents.robots:
             self.contents.robots.append(robot)
+        if index.torso_row is not None:
+            self.contents.follow.add(robot)
         self.contents.detail = self.settings.servo_detail
 
     def set_robot_color(self, robot: str, color: Rgb) -> None:
@@ -267,7 +274,9 @@ class Recording:
         times = times_of(t_s, cycle=cycle)
         self._calibration.add(gait, F, T, dH, times)
         self._timelines(times)
-        self.contents.calibration = True
+        if int(gait) not in self.contents.gaits:
+            self.contents.gaits.append(int(gait))
+            self.contents.gaits.sort()
 
     def _timelines(self, times: Mapping[str, Any]) -> None:
         self.contents.timelines.update(times)
@@ -309,4 +318,4 @@ class Recording:
                 self._tmp.unlink(missing_ok=True)
 
 
-__all__ = ["Recording", "property_values"]
+__all__ = ["NONE_TEXT", "Recording", "property_values"]

@@ -4,8 +4,12 @@ Entities of robot ``R`` (every servo frame unless noted; all on ``sim_time`` plu
 ``cycle``, whichever the caller gives)::
 
     world/robots/R/bodies/<body>[/geoms/<k>]   Transform3D (world pose); static shapes
+    world/robots/R/follow                      Transform3D: the torso's place on the floor
+                                               (translation only), the frame of the
+                                               blueprint's follow view
     world/robots/R/contacts                    Arrows3D: force on the robot at each contact
-                                               (feet green, any other body red), m per N
+                                               (feet green, any other body red), m per N,
+                                               at most ``force_max_length_m`` long
     world/robots/R/feet                        Points3D, when ``log_feet`` is used (trails)
     world/robots/R/rays                        LineStrips3D per step: the rangefinder rays,
                                                red to a hit within range, grey otherwise
@@ -38,7 +42,7 @@ from servobot.recording.style import (
 )
 
 JOINT_SERIES = ("thrust target", "thrust angle", "lift target", "lift angle")
-"""The four series of each leg's joint plot, in order."""
+"""The four series of each leg's joint plot, in order (the plot's title names the leg)."""
 _JOINT_COLORS = ((120, 170, 255), (20, 70, 200), (255, 180, 110), (210, 90, 0))
 
 
@@ -110,6 +114,14 @@ class RobotIndex:
             rays=None if fans[0] is None or fans[1] is None else (fans[0], fans[1]),
             elliptic=model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC,
         )
+
+
+def force_arrows(forces_n: np.ndarray, m_per_n: float, max_m: float) -> np.ndarray:
+    """Drawn arrows (n, 3) m of forces (n, 3) N: ``m_per_n`` metres per newton, none longer
+    than ``max_m`` (a longer one keeps its direction)."""
+    v = np.asarray(forces_n, dtype=np.float64).reshape(-1, 3) * m_per_n
+    length = np.linalg.norm(v, axis=1, keepdims=True)
+    return v * np.minimum(1.0, max_m / np.maximum(length, 1e-300))
 
 
 class RobotRecorder:
@@ -216,6 +228,11 @@ class RobotRecorder:
                 indexes=index,
                 columns=rr.Transform3D.columns(translation=pos[:, k], quaternion=xyzw[:, k]),
             )
+        if ix.torso_row is not None:  # the frame a follow view sits in: not turning
+            follow = pos[:, ix.torso_row].copy()
+            follow[:, 2] = 0.0
+            rec.send_columns(f"{base}/follow", indexes=index,
+                             columns=rr.Transform3D.columns(translation=follow))  # fmt: skip
         if self.detail and ix.torso_row is not None:
             self._style(rec, "attitude")
             roll, pitch = roll_pitch_deg(quat[:, ix.torso_row])
@@ -247,12 +264,13 @@ class RobotRecorder:
         forces = sign * np.einsum("kij,ki->kj", frame[keep], local[keep])  # world frame, N
         foot = ix.foot_of_geom[np.where(on_second, geom[keep, 1], geom[keep, 0])]
         colors = np.where((foot >= 0)[:, None], [FOOT_CONTACT_COLOR], [BODY_CONTACT_COLOR])
+        s = self.settings
         rec.send_columns(
             f"{self.base}/contacts",
             indexes=index,
             columns=rr.Arrows3D.columns(
                 origins=pos.reshape(-1, 3)[keep],
-                vectors=forces * self.settings.force_scale_m_per_n,
+                vectors=force_arrows(forces, s.force_scale_m_per_n, s.force_max_length_m),
                 colors=colors.astype(np.uint8),
             ).partition(np.bincount(row_of[keep], minlength=n)),
         )
@@ -268,17 +286,14 @@ class RobotRecorder:
         self._styled.add(part)
         r, log = self.name, rec.log
         if part == "attitude":
-            log(f"plots/attitude/{r}", rr.SeriesLines(names=[f"roll {r}", f"pitch {r}"]),
-                static=True)  # fmt: skip
+            log(f"plots/attitude/{r}", rr.SeriesLines(names=["roll", "pitch"]), static=True)
         elif part == "joints":
             for leg in C.LEGS:
-                names = [f"{leg} {s}" for s in JOINT_SERIES]
-                log(f"plots/joints/{r}/{leg}", rr.SeriesLines(names=names, colors=_JOINT_COLORS),
-                    static=True)  # fmt: skip
+                series = rr.SeriesLines(names=JOINT_SERIES, colors=_JOINT_COLORS)
+                log(f"plots/joints/{r}/{leg}", series, static=True)
         elif part == "contacts":
             log(f"{self.base}/contacts", rr.Arrows3D.from_fields(radii=0.003), static=True)
-            names = [f"{leg} {r}" for leg in C.LEGS]
-            log(f"plots/foot_force/{r}", rr.SeriesLines(names=names), static=True)
+            log(f"plots/foot_force/{r}", rr.SeriesLines(names=list(C.LEGS)), static=True)
         elif part == "rays":
             log(f"{self.base}/rays", rr.LineStrips3D.from_fields(radii=0.0015), static=True)
         elif part == "feet":
@@ -286,4 +301,4 @@ class RobotRecorder:
                 static=True)  # fmt: skip
 
 
-__all__ = ["JOINT_SERIES", "RobotIndex", "RobotRecorder"]
+__all__ = ["JOINT_SERIES", "RobotIndex", "RobotRecorder", "force_arrows"]

@@ -25,6 +25,7 @@ from evolve.settings import WorldSettings
 from servo_mj.robot.constants import CM_PER_M
 from servo_mj.robot.gaits import PATTERN
 from servo_mj.robot.settings import PhysicsSettings
+from servobot.recording.provenance import provenance
 from servobot.recording.recording import Recording
 from servobot.recording.style import DEFAULT_ROBOT, RecordingSettings
 
@@ -97,13 +98,18 @@ class RunRecorder:
     @classmethod
     def for_trace(
         cls, path: str | Path, bits: np.ndarray, start: Sequence[float], *, mode: str,
-        table: Any, world: WorldSettings, source: str | Path,
+        table: Any, world: WorldSettings, source: str | Path, command: str | None = None,
     ) -> RunRecorder:  # fmt: skip
-        """The recorder of a table-only run (``servobot trace``), with the ghost robot."""
+        """The recorder of a table-only run (``servobot trace``), with the ghost robot (the
+        shipped ServoBot); ``command`` the command line (None: ``sys.argv``)."""
+        values = np.asarray(getattr(table, "values", table), dtype=np.float64)
         props = {
             "chromosome": {"text": format_chromosome(np.asarray(bits)), "file": str(source)},
             "start": dict(zip(("x_cm", "y_cm", "heading_deg"), start, strict=True)),
-            "mode": mode, "gait_table": getattr(table, "source", "array"),
+            "mode": mode,
+            "gait_table": {"F_cm": values[:, 0], "T_cm": values[:, 1], "dH_deg": values[:, 2]},
+            **provenance(model=None, table=values, table_source=getattr(table, "source", "array"),
+                         command=command),
         }  # fmt: skip
         return cls(path, world=world, start=start, name=f"trace/{Path(source).stem}",
                    app_id="servobot-trace", properties=props, ghost=True)  # fmt: skip
@@ -160,8 +166,9 @@ class RunRecorder:
 
 
 def validation_properties(job: Any, physics: PhysicsSettings) -> dict[str, Any]:
-    """Properties of a validation run: chromosome, start, seed, gait table and settings. A
-    colony run's job (``servobot.validation.colony.ColonyJob``) has R start poses and its
+    """Properties of a validation run: chromosome, start, seed, gait table, settings, and the
+    model, table and command that made it (``servobot.recording.provenance``). A colony run's
+    job (``servobot.validation.colony.ColonyJob``) has R start poses and its
     ``ColonySettings``."""
     table = np.asarray(job.table, dtype=np.float64)
     keys = ("x_cm", "y_cm", "heading_deg")
@@ -190,7 +197,9 @@ def validation_properties(job: Any, physics: PhysicsSettings) -> dict[str, Any]:
         "seed": {"seed": job.seed, "servo_noise_rng": rng},
         "gait_table": {"F_cm": table[:, 0], "T_cm": table[:, 1], "dH_deg": table[:, 2]},
         "settings": settings,
-    }
+        **provenance(model=job.model, table=table, table_source=job.table_source,
+                     command=job.command),
+    }  # fmt: skip
 
 
 def result_fields(record: dict[str, Any]) -> dict[str, Any]:

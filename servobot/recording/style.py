@@ -21,6 +21,17 @@ SENSORS: tuple[tuple[str, int], ...] = (
 )
 """The five sensors: (series name, bit in a StepEvent's ``sensors`` mask)."""
 
+SENSOR_LABELS: dict[str, str] = {
+    "object_right": "object R", "object_left": "object L", "low_power": "low power",
+    "light_right": "light R", "light_left": "light L",
+}  # fmt: skip
+"""Each sensor's name in a plot's legend."""
+SENSOR_COLORS: dict[str, tuple[int, int, int]] = {
+    "object_right": (230, 60, 60), "object_left": (150, 20, 20), "low_power": (160, 160, 160),
+    "light_right": (250, 210, 0), "light_left": (230, 140, 0),
+}  # fmt: skip
+"""Each sensor's line colour in the plots."""
+
 MODES: dict[str, int] = {"coverage": 0, "navigation": 1, "charging": 2, "charge": 2}
 """Numeric value plotted for each controller mode name."""
 
@@ -64,12 +75,31 @@ class RecordingSettings:
     """Length of the heading arrow drawn at each world's pose, m."""
     force_scale_m_per_n: float = 0.02
     """Drawn length of a contact force arrow per newton, m/N (the robot weighs ≈ 9.8 N)."""
+    force_max_length_m: float = 0.10
+    """Longest drawn contact force arrow, m: a longer one (a force above 5 N at 0.02 m/N, e.g.
+    a stiff contact against the station block) is drawn this long, along its direction."""
     light_span_radius_m: float = 0.30
     """Drawn radius of the light-sensor span wedges, m (their range is unlimited)."""
     ghost_alpha: int = 80
     """Opacity (0–255) of the ghost robot drawn at the table world's pose."""
     playback_speed: float = 8.0
-    """Initial playback speed of the time panel (× simulated time)."""
+    """Initial playback speed of the time panel (× simulated time); on a step timeline the
+    time panel plays the steps at the rate this speed gives them (8×: 5 steps a second, a
+    colony step of R robots R times slower)."""
+    max_plot_series: int = 6
+    """Most series drawn in one plot; more are split over several plots."""
+    follow_eye_m: tuple[float, float, float] = (-0.45, -0.55, 0.40)
+    """Where a follow view's camera sits relative to the robot it follows (x east, y north,
+    z up), m."""
+
+
+LABEL_HEIGHTS_M: dict[str, float] = {"physics": 0.28, "table": 0.38}
+"""Height of a world's name above its pose, m (other worlds: 0.48)."""
+
+
+def label_height_m(world_name: str) -> float:
+    """Height of a world's name above its pose, m: each world its own, so none covers another."""
+    return LABEL_HEIGHTS_M.get(world_name, 0.48)
 
 
 def world_color(world_name: str) -> Rgb:
@@ -90,6 +120,7 @@ __all__ = [
     "SENSORS",
     "WORLD_COLORS",
     "RecordingSettings",
+    "label_height_m",
     "tint",
     "world_color",
 ]

@@ -195,7 +195,7 @@ class _Pipeline:
             with Recording.for_calibration(folder / RECORDING_FILE) as rec:
                 res = calibrate(
                     folder, settings, command="servobot reproduce (stage 1)",
-                    **calibration_recorder(rec, settings),
+                    **calibration_recorder(rec, settings, "servobot reproduce (stage 1)"),
                 )  # fmt: skip
                 log_calibration_result(rec, res)
             return {}

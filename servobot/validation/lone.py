@@ -101,6 +101,10 @@ class Job:
     a colony's: ``servo_mj.world.physics_colony.robot_rngs(seed, index, R)``."""
     model: str | None = None
     """The robot's model file (None = the shipped ServoBot)."""
+    table_source: str = "array"
+    """Where ``table`` came from (``GaitTable.source``), for the recording's properties."""
+    command: str | None = None
+    """The command line that asked for the run, for the recording (None: ``sys.argv``)."""
 
 
 @dataclass(frozen=True)
@@ -583,7 +587,9 @@ def validate(
         settings["ColonySettings"] = jsonable(colony)
     common = {"bits": arr, "table": values, "world": world, "arena": arena, "physics": physics,
               "max_steps": max_steps, "seed": seed,
-              "model": None if model is None else str(model)}  # fmt: skip
+              "model": None if model is None else str(model),
+              "table_source": getattr(table, "source", "array"),
+              "command": (meta or {}).get("command")}  # fmt: skip
 
     def job(k: int, start: Any) -> Job:
         own = {"mode": mode, "power": volts[k]} if colony is None else {"colony": colony}
