@@ -227,6 +227,8 @@ CASES = {
         (["--out", "{chrom16}"], "is a file, not a folder"),
         (["--out", "/proc/servobot-x"], "cannot write there"),
         (["--model", "{dir}"], "a_folder: no such file"),
+        (["--envelope", "{list_json}"], "list.json: an envelope is a JSON object"),
+        (["--envelope", "{binary}"], "binary.bin"),
     ],
     "variant": [
         (["--torso-mass", "-1", "--out", "{dir}/v.xml"], "torso_mass_kg must be > 0"),

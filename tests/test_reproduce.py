@@ -11,6 +11,7 @@ import pytest
 import rerun as rr
 
 from evolve.codec import read_chromosome
+from evolve.envelope import DEFAULT
 from evolve.table import load_table
 from infra.rundir import RunDirError
 from servobot.cli.reproduce import main
@@ -18,15 +19,18 @@ from servobot.reproduce.run import (
     ReproduceError,
     ReproduceSettings,
     quick_settings,
+    read_done,
     reproduce,
     stage_key,
 )
+from servobot.robustness.worlds import BUILT_IN
 
 TINY = ReproduceSettings(
     calibration_cycles=1, calibration_settle_cycles=0,
     navigation_populations=1, navigation_population_size=6, navigation_generations=2,
     coverage_populations=2, coverage_population_size=6, coverage_generations=2, test_starts=4,
-    validate_starts=2, validate_max_steps=6, validate_navigation_starts=2, seed=3,
+    validate_starts=2, validate_max_steps=6, validate_navigation_starts=2, robustness_starts=1,
+    seed=3,
 )  # fmt: skip
 """Smaller than --quick: seconds, but every stage and file of a full run."""
 
@@ -38,10 +42,23 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     return out, res
 
 
+@pytest.fixture(scope="module")
+def envelope_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A tiny run through the command line with ``--envelope default``."""
+    out = tmp_path_factory.mktemp("reproduce-envelope")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("servobot.reproduce.run.quick_settings", lambda: TINY)
+        argv = ["--out", str(out), "--quick", "--envelope", "default", "--workers", "1"]
+        assert main([*argv, "--no-progress"]) == 0
+    return out
+
+
 def test_tiny_run_writes_every_stage(run_dir: tuple[Path, dict]) -> None:
     out, res = run_dir
     assert all(not st["skipped"] for st in res["stages"].values())
-    assert set(res["stages"]) == {"calibration", "navigation", "coverage", "validation"}
+    assert set(res["stages"]) == {
+        "calibration", "navigation", "coverage", "validation", "robustness"
+    }  # fmt: skip
     table = load_table(out / "calibration" / "gait_table.json")
     assert table.values.shape == (16, 3)
     assert table.meta["seed"] == TINY.seed
@@ -111,6 +128,33 @@ def test_interrupted_validation_resumes_per_finalist(run_dir: tuple[Path, dict])
     assert res["stages"]["coverage"]["skipped"]
 
 
+def test_robustness_stage_runs_every_finalist_in_every_world(run_dir: tuple[Path, dict]) -> None:
+    out, res = run_dir
+    doc = json.loads((out / "robustness" / "robustness.json").read_text())
+    assert [w["name"] for w in doc["worlds"]] == list(BUILT_IN)
+    names = [c["name"] for c in doc["table_per_chromosome"]]
+    assert names == [f"best_pop{k}" for k in range(TINY.coverage_populations)]
+    assert (doc["starts"], doc["steps"], doc["seed"]) == (1, TINY.validate_max_steps, TINY.seed)
+    assert doc["table"]["source"] == str(out / "calibration" / "gait_table.json")
+    assert set(res["stages"]["robustness"]["worlds"]) == set(BUILT_IN)
+    text = (out / "REPORT.md").read_text()
+    assert "## 5. Robustness" in text and "](robustness/robustness.png)" in text
+    assert "| **drop vs shipped (pp)** |" in text and "| best_pop1 |" in text
+    assert (out / "robustness" / "robustness.png").exists()
+
+
+def test_interrupted_matrix_resumes_cell_by_cell(run_dir: tuple[Path, dict]) -> None:
+    out, _ = run_dir
+    # As if killed in the matrix's last cell: its report and the stage marker are missing.
+    (out / "robustness" / "done.json").unlink()
+    (out / "robustness" / "runs" / "long-legs" / "best_pop1" / "report.json").unlink()
+    runs: list[dict] = []
+    res = reproduce(out, settings=TINY, workers=1, log=lambda _m: None, on_run=runs.append)
+    assert not res["stages"]["robustness"]["skipped"] and res["stages"]["validation"]["skipped"]
+    assert len(runs) == TINY.robustness_starts  # only the missing cell ran
+    assert (out / "robustness" / "done.json").exists()
+
+
 def test_other_settings_in_the_same_folder_are_refused(run_dir: tuple[Path, dict]) -> None:
     out, _ = run_dir
     other = dataclasses.replace(TINY, coverage_generations=3)
@@ -118,6 +162,58 @@ def test_other_settings_in_the_same_folder_are_refused(run_dir: tuple[Path, dict
     with pytest.raises(RunDirError, match="coverage_generations: 2 there, 3 here"):
         reproduce(out, settings=other, workers=1, log=lambda _m: None)
     assert (out / "REPORT.md").read_text() == report  # nothing rewritten
+
+
+def test_envelope_reaches_the_stages(envelope_dir: Path) -> None:
+    out = envelope_dir
+    record = json.loads((out / "settings.json").read_text())
+    assert record["ReproduceSettings"]["envelope"] == "default"
+    assert record["Envelope"] == DEFAULT.to_dict()
+    nav = json.loads((out / "navigation" / "done.json").read_text())["info"]
+    cov = json.loads((out / "coverage" / "done.json").read_text())["info"]
+    assert nav["envelope"] == cov["envelope"] == DEFAULT.to_dict()
+    assert 0.0 <= nav["envelope_dock_success"] <= 1.0
+    assert 0.0 <= cov["envelope_final_mean_inner_percent"] <= 100.0
+    summ = json.loads((out / "coverage" / "summary.json").read_text())
+    assert summ["envelope_final_mean_inner_percent"] == cov["envelope_final_mean_inner_percent"]
+    assert json.loads((out / "navigation" / "settings.json").read_text())["Envelope"]
+    text = (out / "REPORT.md").read_text()
+    assert "Envelope: `default`" in text
+    assert "In its envelope, on the same test starts:" in text  # docking
+    assert "In the envelope, on the same test starts: mean" in text  # Figure 9
+    assert "mean (envelope) |" in text and "## 5. Robustness" in text
+    assert json.loads((out / "robustness" / "done.json").read_text())["settings"]["envelope"]
+
+
+def test_another_envelope_is_refused(envelope_dir: Path, tmp_path: Path) -> None:
+    out = envelope_dir
+    refused = 'ReproduceSettings.envelope: "default" there, "none" here'
+    with pytest.raises(RunDirError, match=refused):
+        reproduce(out, settings=TINY, workers=1, log=lambda _m: None)
+    # A stage marker says the same: calibration does not depend on the envelope, the stages
+    # from navigation on do (also when the envelope file's fields change).
+    assert read_done(out / "calibration", stage_key(TINY, "calibration")) is not None
+    for stage in ("navigation", "coverage", "validation", "robustness"):
+        with pytest.raises(ReproduceError, match="other settings.*envelope"):
+            read_done(out / stage, stage_key(TINY, stage))
+    file = tmp_path / "env.json"
+    file.write_text(json.dumps(DEFAULT.to_dict() | {"reach_units": 7.0}))
+    key = stage_key(dataclasses.replace(TINY, envelope=str(file)), "coverage")
+    assert key["envelope_fields"]["reach_units"] == 7.0
+    with pytest.raises(ReproduceError, match="envelope"):
+        read_done(out / "coverage", key)
+
+
+def test_cli_names_a_bad_envelope_file(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    missing = tmp_path / "nope.json"
+    assert main(["--out", str(tmp_path / "x"), "--envelope", str(missing), "--no-progress"]) == 2
+    assert "nope.json" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"scatter_scale": -1}')
+    assert main(["--out", str(tmp_path / "y"), "--envelope", str(bad), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.json" in err and "scatter_scale" in err
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
 
 
 def test_settings_keys_and_presets() -> None:
@@ -132,6 +228,14 @@ def test_settings_keys_and_presets() -> None:
     # A stage's key holds the settings of the stages before it, not those after it.
     assert "calibration_cycles" in stage_key(full, "coverage")
     assert "validate_starts" not in stage_key(full, "coverage")
+    # The exact world keeps the keys of before; an envelope enters navigation and later.
+    assert full.envelope == "none" and "envelope" not in stage_key(full, "robustness")
+    env = dataclasses.replace(full, envelope="default")
+    assert stage_key(env, "calibration") == stage_key(full, "calibration")
+    assert stage_key(env, "navigation")["envelope"] == "default"
+    assert "robustness_starts" in stage_key(full, "robustness")
+    assert (full.robustness_starts, quick.robustness_starts) == (2, 1)
+    assert quick.validate_max_steps == full.robustness(Path("d")).steps == 600
 
 
 def test_cli_rejects_bad_budget(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

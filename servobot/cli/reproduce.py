@@ -12,11 +12,17 @@ import os
 from pathlib import Path
 
 from infra.bounds import check_int
-from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
+from servobot.cli.options import (
+    add_envelope_option,
+    add_executor_option,
+    add_model_option,
+    executor_from_args,
+)
 from servobot.cli.runner import run_main
 from servobot.progress import GenerationBars, RunBar
 from servobot.reproduce.report import format_seconds
 from servobot.reproduce.run import reproduce, resolve_settings
+from servobot.reproduce.settings import ROBUSTNESS_WORLDS
 
 PROG = "servobot reproduce"
 
@@ -25,8 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="servobot reproduce",
         description="Calibrate, evolve navigation and coverage, validate the finalists in "
-        "physics, and write REPORT.md with figures and .rrd recordings. Resumable: rerun the "
-        "same command after an interruption.",
+        "physics, run them through the physics test matrix, and write REPORT.md with figures "
+        "and .rrd recordings. Resumable: rerun the same command after an interruption.",
     )
     p.add_argument(
         "--out", type=Path, default=Path("runs/reproduce"), help="run folder (runs/reproduce)"
@@ -44,8 +50,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="validation starts per finalist (default 20; --quick 3)",
     )
-    add_executor_option(p, None, "process, serial with --workers 1 (validation runs)")
+    add_executor_option(
+        p, None, "process, serial with --workers 1 (validation and robustness runs)"
+    )
     add_model_option(p, type=str)
+    add_envelope_option(p)
     p.add_argument(
         "--force",
         action="store_true",
@@ -63,12 +72,15 @@ def _run(args: argparse.Namespace) -> int:
         check_int(args.seed, "--seed", lo=0)
     settings = resolve_settings(
         quick=args.quick, seed=args.seed, validate_starts=args.validate_starts,
-        model=args.model,
+        model=args.model, envelope=args.envelope,
     )  # fmt: skip
     bars = GenerationBars(enabled=not args.no_progress)
+    per_world = 0 if settings.model is not None else settings.robustness_starts
+    matrix = len(ROBUSTNESS_WORLDS) * per_world
     runs = RunBar(  # shown at its first run, not before the checks
-        "validation runs", not args.no_progress,
-        total=settings.coverage_populations * settings.validate_starts,
+        "physics runs", not args.no_progress,
+        total=settings.coverage_populations * (settings.validate_starts + matrix)
+        + 2 * settings.validate_navigation_starts,
     )  # fmt: skip
     try:
         res = reproduce(

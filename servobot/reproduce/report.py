@@ -20,6 +20,7 @@ from evolve.table import PAPER_TABLE, load_table
 from infra.io import atomic_write_text
 from servo_mj.robot.model import model_label
 from servobot.reproduce.settings import STAGES, ReproduceSettings
+from servobot.robustness.report import MEAN_AND_DROP, matrix_table
 
 
 def _load_json(path: Path) -> dict[str, Any] | None:
@@ -94,18 +95,34 @@ def _navigation_section(out: Path) -> list[str]:
         f"**{100 * summ['dock_success']:.0f}%**"
         + (f", mean {steps:.1f} steps to dock." if steps is not None else "."),
         "",
+    ]
+    env = "envelope_dock_success" in summ
+    if env:
+        e_steps = summ.get("envelope_mean_steps_to_dock")
+        lines += [
+            "In its envelope, on the same test starts: "
+            f"**{100 * summ['envelope_dock_success']:.0f}%**"
+            + (f", mean {e_steps:.1f} steps to dock." if e_steps is not None else ".")
+            + " The figure above is the exact world's (SPEC §3).",
+            "",
+        ]
+    lines += [
         *_docking_rows(out, summ),
         "",
         "Each population's final best on the test starts:",
         "",
-        "| population | test fitness | dock rate | final training fitness |",
-        "|---|---|---|---|",
+        "| population | test fitness | dock rate | final training fitness |"
+        + (" test fitness (envelope) | dock rate (envelope) |" if env else ""),
+        "|---|---|---|---|" + ("---|---|" if env else ""),
     ]
     for p in summ.get("populations", []):
-        lines.append(
+        row = (
             f"| {p['population']} | {p['test_fitness']:.3f} | {100 * p['dock_rate']:.0f}% | "
             f"{p['final_training_fitness']:.3f} |"
         )
+        if env and "envelope_dock_rate" in p:
+            row += f" {p['envelope_test_fitness']:.3f} | {100 * p['envelope_dock_rate']:.0f}% |"
+        lines.append(row)
     return [*lines, ""]
 
 
@@ -117,6 +134,11 @@ def _docking_rows(out: Path, nav: dict[str, Any]) -> list[str]:
         f"| fresh navigation starts (the stage's test starts) | {nav['test_starts']} | "
         f"{100 * nav['dock_success']:.0f}% | |",
     ]
+    if "envelope_dock_success" in nav:
+        rows.append(
+            f"| the same test starts, in the envelope | {nav['test_starts']} | "
+            f"{100 * nav['envelope_dock_success']:.0f}% (envelope) | |"
+        )
     cov = _load_json(out / "coverage" / "summary.json") or {}
     ho = cov.get("handoffs", {}).get("all")
     if ho and ho.get("dock_rate") is not None:
@@ -156,14 +178,31 @@ def _coverage_section(out: Path) -> list[str]:
         f"starts, % of the 64 inner squares): mean **{summ['final_mean_inner_percent']:.1f}%**"
         "; per population " + ", ".join(f"{k}: {v:.1f}%" for k, v in enumerate(inner[:, -1])) + ".",
         "",
-        "| generation | " + " | ".join(f"pop {k}" for k in range(len(inner))) + " | mean |",
-        "|---|" + "---|" * (len(inner) + 1),
+    ]
+    env = "envelope_final_mean_inner_percent" in summ
+    e_mean = np.asarray(summ.get("envelope_figure9_mean_inner_percent", []))
+    if env:
+        e_final = summ["envelope_final_inner_percent"]
+        lines += [
+            f"In the envelope, on the same test starts: mean "
+            f"**{summ['envelope_final_mean_inner_percent']:.1f}%**; per population "
+            + ", ".join(f"{k}: {v:.1f}%" for k, v in enumerate(e_final))
+            + ". The figure and the table's population columns are the exact world's (SPEC §3).",
+            "",
+        ]
+    lines += [
+        "| generation | "
+        + " | ".join(f"pop {k}" for k in range(len(inner)))
+        + " | mean |"
+        + (" mean (envelope) |" if env else ""),
+        "|---|" + "---|" * (len(inner) + 1 + int(env)),
     ]
     for j, g in enumerate(gens):
         lines.append(
             f"| {g} | "
             + " | ".join(f"{inner[k, j]:.1f}" for k in range(len(inner)))
             + f" | {inner[:, j].mean():.1f} |"
+            + (f" {e_mean[j]:.1f} |" if env and j < len(e_mean) else "")
         )
     lines += ["", "Figure 10: each population's final best from (415, 252, 98°).", ""]
     for f in summ.get("figure10", []):
@@ -226,6 +265,55 @@ def _validation_section(out: Path, s: ReproduceSettings) -> tuple[list[str], lis
     return lines, rrds
 
 
+def _robustness_section(out: Path, s: ReproduceSettings) -> list[str]:
+    folder = out / "robustness"
+    lines = ["## 5. Robustness: the finalists in physics worlds (SPEC §9)", ""]
+    if s.model is not None:
+        return [*lines, "*(not run: the test matrix's worlds are variants of the shipped "
+                "robot, and this run's robot is another)*", ""]  # fmt: skip
+    doc = _load_json(folder / "robustness.json")
+    if doc is None:
+        return [*lines, "*(robustness/robustness.json not written)*", ""]
+    lines += [
+        f"Each finalist (`coverage/best_pop{{k}}.txt`), unchanged, from the same {doc['starts']} "
+        f"seeded coverage starts (seed {doc['seed']}), {doc['steps']} steps, in the table world "
+        "(the calibrated table) and in every built-in physics world "
+        "(`servobot.robustness.worlds`); % of the 64 inner squares reached, mean over the runs "
+        "whose physics finished. `long-legs` is held out: no choice may look at it.",
+        "",
+        *_img(out, folder / "robustness.png", "Robustness: finalists × physics worlds"),
+        *matrix_table(doc),
+        "",
+        MEAN_AND_DROP,
+        "",
+        "| world | what it changes | physics errors |",
+        "|---|---|---|",
+        *(f"| {w['name']} | {w['description']} | {w['physics_errors']} |" for w in doc["worlds"]),
+        "",
+        "How runs end, model hashes: `robustness/robustness.md`; each cell's validation: "
+        "`robustness/runs/{world}/best_pop{k}/report.md`.",
+        "",
+    ]
+    return lines
+
+
+def _envelope_line(s: ReproduceSettings) -> str:
+    """Which table world navigation and coverage evolved in."""
+    try:
+        env = s.envelope_value()
+    except Exception as exc:  # noqa: BLE001 - the report names what is missing
+        return f"Envelope: `{s.envelope}` *(unreadable now: {exc})*."
+    if not env.varies:
+        return "Envelope: `none` (navigation and coverage evolved in the exact world, SPEC §3)."
+    fields = ", ".join(f"{k} {v:g}" if not isinstance(v, bool) else f"{k} {str(v).lower()}"
+                       for k, v in env.to_dict().items())  # fmt: skip
+    return (
+        f"Envelope: `{s.envelope}` ({fields}; SPEC §9): navigation and coverage evolved in it; "
+        "their test figures are given in the envelope and in the exact world (SPEC §3), on the "
+        "same test starts. Validation and the robustness matrix run the exact table world."
+    )
+
+
 def write_report(
     out: Path,
     s: ReproduceSettings,
@@ -243,6 +331,8 @@ def write_report(
         f"Written {now} on {platform.node() or 'this machine'} ({ncpu} CPU cores, "
         f"Python {platform.python_version()}). Settings: `settings.json`; seed {s.seed}. "
         f"Robot: {model_label(s.model)}.",
+        "",
+        _envelope_line(s),
         "",
         "| stage | wall time | this invocation |",
         "|---|---|---|",
@@ -265,9 +355,10 @@ def write_report(
     lines += _coverage_section(out)
     vlines, rrds = _validation_section(out, s)
     lines += vlines
+    lines += _robustness_section(out, s)
     if (out / "calibration" / "calibration.rrd").exists():
         rrds.insert(0, out / "calibration" / "calibration.rrd")
-    lines += ["## 5. Recordings", "", "Open any run in the rerun viewer:", ""]
+    lines += ["## 6. Recordings", "", "Open any run in the rerun viewer:", ""]
     by_folder: dict[str, list[str]] = {}
     for p in rrds:
         by_folder.setdefault(p.parent.relative_to(out).as_posix(), []).append(p.name)
@@ -281,14 +372,15 @@ def write_report(
         "Each holds the arena, the robot's bodies, the physics (orange) and table (blue) tracks,",
         "squares as reached, power, sensors, mode and squares over time, and the instructions.",
         "",
-        "## 6. Settings",
+        "## 7. Settings",
         "",
         "```json",
         json.dumps({"ReproduceSettings": s.to_dict()}, indent=2),
         "```",
         "",
         "World, GA and physics settings of each stage: `*/settings.json` and",
-        "`validation/pop*/report.json`; calibration provenance: `calibration/gait_table.json`.",
+        "`validation/pop*/report.json`; calibration provenance: `calibration/gait_table.json`;",
+        "the test matrix's: `robustness/settings.json`.",
         "",
     ]
     return atomic_write_text(out / "REPORT.md", "\n".join(lines))

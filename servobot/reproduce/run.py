@@ -9,7 +9,14 @@ validation resumes finalist by finalist)::
     3 coverage     DIR/coverage/best_pop{k}.txt, figure9.*, figure10_pop{k}.png, DIR/figure8.png
     4 validation   DIR/validation/pop{k}/report.{json,md}, run{j}.rrd  (table vs physics)
                    DIR/validation/navigation_{fresh,handoffs}/report.{json,md}  (the section)
-    5 report       DIR/REPORT.md                                      (always rewritten)
+    5 robustness   DIR/robustness/robustness.{json,md,png}, runs/{world}/best_pop{k}/
+                   (the finalists × every built-in physics world: the test matrix)
+    6 report       DIR/REPORT.md                                      (always rewritten)
+
+An envelope (``ReproduceSettings.envelope``, SPEC §9) makes navigation and coverage evolve in a
+varied table world; their summaries then carry the envelope's figures (``envelope_*``) beside
+the exact world's, and the envelope is part of every later stage's key. The robustness stage
+runs ``servobot.robustness.matrix.run_matrix`` on the calibrated table, resumable cell by cell.
 
 Budgets live in ``ReproduceSettings`` (paper scale by default, ``quick_settings()`` for a
 first look). Before anything runs, the budgets are checked against the machine
@@ -43,6 +50,7 @@ from calibration.calibrate import (
     calibration_need,
 )
 from evolve.codec import read_chromosome
+from evolve.envelope import NONE, Envelope
 from evolve.handoff import PosesError, read_poses
 from evolve.population import OnGeneration
 from evolve.settings import WorldSettings, settings_json
@@ -56,6 +64,7 @@ from infra.rundir import RECORD_FILE, run_folder
 from servobot.recording import Recording, calibration_recorder, log_calibration_result
 from servobot.reproduce.report import write_report
 from servobot.reproduce.settings import (
+    ROBUSTNESS_WORLDS,
     STAGES,
     ReproduceError,
     ReproduceSettings,
@@ -63,6 +72,7 @@ from servobot.reproduce.settings import (
     quick_settings,
     stage_key,
 )
+from servobot.robustness.matrix import ROBUSTNESS_FILES, run_matrix
 from servobot.validation.lone import (
     VALIDATION_FILES,
     ValidationError,
@@ -89,6 +99,7 @@ REPRODUCE_FILES = (
     "validation/starts.json",
     *(f"validation/{sub}/{f}" for sub in ("pop*", *NAVIGATION_VALIDATIONS)
       for f in (DONE, RECORD_FILE, *VALIDATION_FILES)),
+    *(f"robustness/{f}" for f in ROBUSTNESS_FILES),
 )  # fmt: skip
 """Every file a reproduction writes under its folder besides ``settings.json``."""
 
@@ -144,6 +155,9 @@ def reproduce_need(s: ReproduceSettings, world: WorldSettings, workers: int | No
     for _ in NAVIGATION_VALIDATIONS:
         n = s.validate_navigation_starts
         need += validation_need(n, world.navigation_steps, workers, False)[0]
+    if s.model is None:
+        for _ in range(s.coverage_populations * len(ROBUSTNESS_WORLDS)):
+            need += validation_need(s.robustness_starts, s.validate_max_steps, workers, False)[0]
     return need
 
 
@@ -162,6 +176,11 @@ class _Pipeline:
     on_generation: OnGeneration | None
     on_run: Callable[[dict[str, Any]], None] | None
     stages: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+
+    @property
+    def envelope(self) -> Envelope:
+        """The envelope navigation and coverage evolve in."""
+        return self.s.envelope_value()
 
     def stage(self, name: str, body: Callable[[], dict[str, Any]], outputs: list[Path]) -> None:
         """Run ``body`` unless the stage finished earlier with these settings."""
@@ -209,9 +228,10 @@ class _Pipeline:
         def body() -> dict[str, Any]:
             summ = run_navigation(
                 self.out, table=table, ga=self.s.navigation_ga(), world=self.world,
-                resume=True, on_generation=self.on_generation,
+                resume=True, on_generation=self.on_generation, envelope=self.envelope,
             )  # fmt: skip
-            return {"dock_success": summ["dock_success"], "chosen": summ["chosen_population"]}
+            info = {"dock_success": summ["dock_success"], "chosen": summ["chosen_population"]}
+            return info | _envelope_info(summ, "envelope_dock_success")
 
         self.stage("navigation", body, [folder / "best.txt", folder / "summary.json"])
         return read_chromosome(folder / "best.txt")
@@ -223,8 +243,10 @@ class _Pipeline:
             summ = run_coverage(
                 self.out, navigation=navigation, table=table, ga=self.s.coverage_ga(),
                 world=self.world, resume=True, on_generation=self.on_generation,
+                envelope=self.envelope,
             )  # fmt: skip
-            return {"final_mean_inner_percent": summ["final_mean_inner_percent"]}
+            info = {"final_mean_inner_percent": summ["final_mean_inner_percent"]}
+            return info | _envelope_info(summ, "envelope_final_mean_inner_percent")
 
         finalists = [folder / f"best_pop{k}.txt" for k in range(self.s.coverage_populations)]
         self.stage("coverage", body, [folder / "summary.json", *finalists])
@@ -245,6 +267,28 @@ class _Pipeline:
             return {"finalists": res, "navigation": nav}
 
         self.stage("validation", body, reports)
+
+    def robustness(self) -> None:
+        """The coverage finalists through the physics test matrix (every built-in world) into
+        ``DIR/robustness``; the matrix resumes cell by cell. Not run for another robot
+        (``model``): the matrix's worlds are variants of the shipped one."""
+        folder = self.out / "robustness"
+        n = self.s.coverage_populations
+
+        def body() -> dict[str, Any]:
+            if self.s.model is not None:
+                self.log("[robustness] the matrix's worlds vary the shipped robot; not run for "
+                         f"{self.s.model}")  # fmt: skip
+                return {"note": "not run: the matrix's worlds are variants of the shipped robot"}
+            finalists = [self.out / "coverage" / f"best_pop{k}.txt" for k in range(n)]
+            doc = run_matrix(
+                finalists, folder, self.s.robustness(self.out), executor=self.executor,
+                resume=True, on_run=self.on_run, log=self.log,
+            )  # fmt: skip
+            return robustness_info(doc)
+
+        outputs = [] if self.s.model is not None else [folder / "robustness.json"]
+        self.stage("robustness", body, outputs)
 
     def _validate_finalists(self, table: GaitTable) -> dict[str, Any]:
         """Physics validation of each coverage finalist; resumable finalist by finalist."""
@@ -307,6 +351,26 @@ class _Pipeline:
         return {"skipped": False, "wall_s": round(wall, 3)}
 
 
+def _envelope_info(summary: dict[str, Any], figure: str) -> dict[str, Any]:
+    """A stage summary's envelope and its headline figure in it (none in the exact world)."""
+    if "envelope" not in summary:
+        return {}
+    return {"envelope": summary["envelope"], figure: summary[figure]}
+
+
+def robustness_info(doc: dict[str, Any]) -> dict[str, Any]:
+    """The robustness stage's done record: the table world's and each physics world's mean
+    inner %, each world's drop vs ``shipped`` (pp) and physics errors."""
+    return {
+        "table_inner_percent": doc["table_inner_percent"],
+        "worlds": {
+            w["name"]: {k: w[k] for k in ("physics_inner_percent", "drop_vs_shipped_pp",
+                                          "physics_errors")}
+            for w in doc["worlds"]
+        },
+    }  # fmt: skip
+
+
 def navigation_validation_starts(
     s: ReproduceSettings, world: WorldSettings, out: Path
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -339,9 +403,13 @@ def resolve_settings(
     seed: int | None = None,
     validate_starts: int | None = None,
     model: str | Path | None = None,
+    envelope: str | Path | None = None,
 ) -> ReproduceSettings:
-    """``settings`` (else paper scale, or ``quick_settings()``) with the overrides applied."""
+    """``settings`` (else paper scale, or ``quick_settings()``) with the overrides applied
+    and checked (``check_settings``: a bad envelope file raises ``EnvelopeError``)."""
     s = settings or (quick_settings() if quick else ReproduceSettings())
+    if envelope is not None:
+        s = dataclasses.replace(s, envelope=str(envelope))
     if model is not None:
         s = dataclasses.replace(s, model=str(model))
     if seed is not None:
@@ -360,6 +428,7 @@ def reproduce(
     workers: int | None = None,
     executor: Executor | None = None,
     validate_starts: int | None = None,
+    envelope: str | Path | None = None,
     settings: ReproduceSettings | None = None,
     world: WorldSettings | None = None,
     log: Callable[[str], None] | None = None,
@@ -369,23 +438,28 @@ def reproduce(
 ) -> dict[str, Any]:
     """Run (or resume) every stage into ``out``; return ``{"stages", "report", "wall_s"}``.
 
-    ``settings`` wins over ``quick``; ``seed`` and ``validate_starts`` override its fields.
+    ``settings`` wins over ``quick``; ``seed``, ``validate_starts`` and ``envelope`` (``none``,
+    ``default`` or an envelope file, SPEC §9) override its fields.
     ``executor`` runs the validation starts (default ``make_executor(None, workers)``: 1 =
     here, else a pool of ``workers`` processes, None = every core); calibration records its
     walks, so it runs in this process, and evolution runs here (the kernel uses every core).
     Each stage
     record says whether it ran now or was skipped as already done, and its wall time.
-    ``on_generation`` (GA progress) and ``on_run`` (each finished validation run) are the
+    ``on_generation`` (GA progress) and ``on_run`` (each finished physics run of the
+    validation and the robustness matrix) are the
     progress callbacks; ``log`` gets one line per stage event (default: stderr). ``force``
     deletes the files of a run made with other settings in ``out`` and starts afresh.
     """
     out = Path(out)
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
-    s = resolve_settings(settings, quick=quick, seed=seed, validate_starts=validate_starts)
+    s = resolve_settings(settings, quick=quick, seed=seed, validate_starts=validate_starts,
+                         envelope=envelope)  # fmt: skip
     world = world or WorldSettings()
     check_need(reproduce_need(s, world, workers), "the reproduction's budgets")
     t_all = time.perf_counter()
     doc = {"ReproduceSettings": s.to_dict(), **json.loads(settings_json(world))}
+    if s.envelope_value() != NONE:  # the envelope's fields, also when named by a file
+        doc["Envelope"] = s.envelope_value().to_dict()
     with run_folder(out, doc, owned=REPRODUCE_FILES, resume=True, force=force):
         disk = (
             s.coverage_populations
@@ -399,6 +473,7 @@ def reproduce(
             navigation = run.navigation(table)
             run.coverage(table, navigation)
             run.validation(table)
+            run.robustness()
         finally:  # the report says how far the run got, also when a stage failed
             total = time.perf_counter() - t_all
             try:
@@ -419,6 +494,7 @@ __all__ = [
     "reproduce",
     "reproduce_need",
     "resolve_settings",
+    "robustness_info",
     "stage_key",
     "validation_starts",
 ]

@@ -7,13 +7,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from calibration.calibrate import TABLE_FILE
 from calibration.measure import CalibrationSettings
+from evolve.envelope import NONE, Envelope, load_envelope
 from evolve.settings import GASettings, navigation_ga_settings
 from infra.errors import InputError
 from servo_mj.robot.model import model_sha256
+from servobot.robustness.matrix import RobustnessSettings
+from servobot.robustness.worlds import BUILT_IN
 
-STAGES = ("calibration", "navigation", "coverage", "validation")
+STAGES = ("calibration", "navigation", "coverage", "validation", "robustness")
 """The stages of a reproduction, in order (the report is always rewritten)."""
+ROBUSTNESS_WORLDS = tuple(BUILT_IN)
+"""The physics worlds of the robustness stage: every built-in world of the test matrix."""
 
 
 class ReproduceError(InputError, RuntimeError):
@@ -22,7 +28,9 @@ class ReproduceError(InputError, RuntimeError):
 
 @dataclass(frozen=True)
 class ReproduceSettings:
-    """Budgets of one reproduction. Defaults = the paper's scale (SPEC §5, §6)."""
+    """Budgets of one reproduction. Defaults = the paper's scale (SPEC §5, §6), in the exact
+    table world (``envelope`` ``none``), with a robustness matrix of 2 starts × 6 worlds × 5
+    finalists (``robustness_starts``)."""
 
     calibration_cycles: int = 20
     """Measured gait cycles per gait (after ``calibration_settle_cycles``)."""
@@ -50,8 +58,27 @@ class ReproduceSettings:
     """Navigation runs in the physics validation of the navigation section, twice: from this
     many fresh navigation starts (SPEC §6 region, clear of the station block) and from this
     many of the coverage finalists' hand-off poses and powers (``coverage/handoffs.csv``)."""
+    robustness_starts: int = 2
+    """Start poses per finalist per physics world in the robustness stage (the physics test
+    matrix, SPEC §9: every coverage finalist × every built-in world of
+    ``servobot.robustness.worlds``, ``validate_max_steps`` steps, the table world beside).
+    Default 2: 2 × 6 worlds × 5 finalists = 60 physics runs, 10 per world. Budget: the whole
+    reproduction within 1.3 × its 12.6 min without the stage (2 cores), ≈ 3.8 min, ≈ 50
+    full-length runs at the validation stage's rate. Each cell is one ``validate`` call with
+    its own worker pool and waits for its slowest run: 12 cells of 1-step runs took 2.3 s a
+    cell with 1 start, 3.8 s with 2 (load 4–5 on 2 cores), so ≈ 1 min of overhead for 30
+    cells; 2 starts keep both workers of a 2-core machine busy, so 1 start would save little
+    wall time and halve the runs. Expected ≈ 3.5 min when the finalists fall early in
+    ``heavy``, ``weak`` and ``slippery``, as the one measured finalist did
+    (docs/robustness.md); ≈ 5 min (1.4 ×) if every run lasts its 600 steps."""
+    envelope: str = "none"
+    """Envelope of variation (SPEC §9) that navigation and coverage evolve in: ``none`` (the
+    exact world of SPEC §3: the reproduction as before, bit for bit), ``default``
+    (``evolve.envelope.DEFAULT``) or a JSON file of ``Envelope`` fields. The stages then report
+    Figure 9 and docking in the envelope beside the exact world; calibration, validation and
+    the robustness matrix are unchanged (the finalists they run differ)."""
     seed: int = 0
-    """Seed of every random draw (calibration noise, GA, test and validation starts)."""
+    """Seed of every random draw (calibration noise, GA, test, validation and matrix starts)."""
     model: str | None = None
     """The robot: None = the shipped ServoBot, else a model file (``servobot variant``) that
     the calibration measures and the validation walks."""
@@ -86,6 +113,23 @@ class ReproduceSettings:
             seed=self.seed,
         )
 
+    def envelope_value(self) -> Envelope:
+        """The ``Envelope`` of ``envelope`` (``EnvelopeError`` naming a bad file)."""
+        return load_envelope(self.envelope)
+
+    def robustness(self, out: Path) -> RobustnessSettings:
+        """Settings of the robustness stage's matrix into ``out/robustness``: every built-in
+        world, ``robustness_starts`` starts of ``validate_max_steps`` steps, the run's seed, the
+        calibrated table ``out/calibration/gait_table.json``, no recordings."""
+        return RobustnessSettings(
+            worlds=ROBUSTNESS_WORLDS,
+            starts=self.robustness_starts,
+            steps=self.validate_max_steps,
+            seed=self.seed,
+            table=str(Path(out) / "calibration" / TABLE_FILE),
+            rrd=False,
+        )
+
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 
@@ -94,7 +138,8 @@ def quick_settings(**overrides: Any) -> ReproduceSettings:
     """A first look in a few minutes on 2 cores: the paper's 5 populations but of 64
     individuals, 256 navigation and 128 coverage generations, 5 calibration cycles, and 3
     full-length (600-step) validation starts per finalist, so that docking and recharging
-    show in physics, and 5 + 5 navigation runs."""
+    show in physics, 5 + 5 navigation runs, and a robustness matrix of 1 full-length start
+    per finalist per world (30 runs)."""
     base = ReproduceSettings(
         calibration_cycles=5,
         navigation_population_size=64,
@@ -103,6 +148,7 @@ def quick_settings(**overrides: Any) -> ReproduceSettings:
         coverage_generations=128,
         validate_starts=3,
         validate_navigation_starts=5,
+        robustness_starts=1,
     )
     return dataclasses.replace(base, **overrides)
 
@@ -117,28 +163,40 @@ _STAGE_FIELDS: dict[str, tuple[str, ...]] = {
     ),
     "coverage": ("coverage_populations", "coverage_population_size", "coverage_generations"),
     "validation": ("validate_starts", "validate_max_steps", "validate_navigation_starts"),
+    "robustness": ("robustness_starts",),
 }
+_ENVELOPE_STAGES = STAGES[STAGES.index("navigation") :]
+"""The stages an envelope affects: navigation, coverage and those after them."""
 
 
 def stage_key(settings: ReproduceSettings, stage: str) -> dict[str, Any]:
     """The settings a stage's result depends on: its own fields and those of earlier stages;
-    with a model file, its path and content hash too (every stage depends on the robot)."""
+    with a model file, its path and content hash too (every stage depends on the robot); from
+    navigation on, an envelope other than ``none``: its spec and its fields (a stage of the
+    exact world keeps the key it had before envelopes existed)."""
     d = settings.to_dict()
     key: dict[str, Any] = {}
     for s in STAGES[: STAGES.index(stage) + 1]:
         key.update({f: d[f] for f in _STAGE_FIELDS[s]})
     if settings.model is not None:
         key.update(model=settings.model, model_sha256=model_sha256(settings.model))
+    envelope = settings.envelope_value()
+    if stage in _ENVELOPE_STAGES and envelope != NONE:
+        key.update(envelope=settings.envelope, envelope_fields=envelope.to_dict())
     return key
 
 
 def check_settings(s: ReproduceSettings) -> None:
     """Every budget is an integer ≥ 1 (settle cycles and seed ≥ 0), else ``ReproduceError``;
-    a model file must exist."""
+    a model file must exist; the envelope must load (``EnvelopeError`` naming it)."""
     if s.model is not None and not Path(s.model).is_file():
         raise ReproduceError(f"robot model {s.model}: no such file")
+    if not isinstance(s.envelope, str):
+        raise ReproduceError(f"setting envelope must be none, default or a file, got "
+                             f"{s.envelope!r}")  # fmt: skip
+    s.envelope_value()
     for f in dataclasses.fields(s):
-        if f.name == "model":
+        if f.name in ("model", "envelope"):
             continue
         v = getattr(s, f.name)
         low = 0 if f.name in ("calibration_settle_cycles", "seed") else 1
@@ -147,6 +205,7 @@ def check_settings(s: ReproduceSettings) -> None:
 
 
 __all__ = [
+    "ROBUSTNESS_WORLDS",
     "STAGES",
     "ReproduceError",
     "ReproduceSettings",

@@ -167,21 +167,12 @@ def _fmt(v: float | None, signed: bool = False) -> str:
     return f"{v:+.1f}" if signed else f"{v:.1f}"
 
 
-def markdown(doc: dict[str, Any]) -> str:
-    """``robustness.md``: the grid with a mean row and each world's drop vs shipped, the
-    worlds, end reasons and the settings."""
+def matrix_table(doc: dict[str, Any]) -> list[str]:
+    """The grid as Markdown table lines: one row per controller, the table world then each
+    physics world, a mean row and each world's drop vs shipped (pp)."""
     rows, cols, vals = grid(doc)
     worlds = doc["worlds"]
-    lines = [
-        "# Robustness: controllers in physics worlds (table world beside them)", "",
-        f"{doc['starts']} starts per controller, the same in every world; {doc['steps']} steps "
-        f"per coverage run, {doc['navigation_steps']} per navigation run; seed {doc['seed']}; "
-        f"gait table `{doc['table']['source']}` (values sha256 {doc['table']['sha256'][:12]}).",
-        "Coverage chromosomes: % of the 64 inner squares reached (mean over the runs); "
-        "navigation sections: % of runs that dock.", "",
-        "| chromosome | " + " | ".join(cols) + " |",
-        "|---" * (len(cols) + 1) + "|",
-    ]  # fmt: skip
+    lines = ["| chromosome | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for label, row in zip(rows, vals, strict=True):
         lines.append(f"| {label} | " + " | ".join(_fmt(v) for v in row) + " |")
     t_head = doc["table_inner_percent"]
@@ -191,8 +182,31 @@ def markdown(doc: dict[str, Any]) -> str:
                  [t_head, *(_headline(w) for w in worlds)]) + " |")  # fmt: skip
     lines.append("| **drop vs shipped (pp)** | | " + " | ".join(
         _fmt(w["drop_vs_shipped_pp"], signed=True) for w in worlds) + " |")  # fmt: skip
-    lines += ["", "Mean: coverage chromosomes' inner % (navigation sections' docking % when "
-              "there is no coverage chromosome); drop: shipped − world, positive = worse.", "",
+    return lines
+
+
+MEAN_AND_DROP = (
+    "Mean: coverage chromosomes' inner % (navigation sections' docking % when "
+    "there is no coverage chromosome); drop: shipped − world, positive = worse."
+)
+"""What ``matrix_table``'s last two rows mean."""
+
+
+def markdown(doc: dict[str, Any]) -> str:
+    """``robustness.md``: the grid with a mean row and each world's drop vs shipped, the
+    worlds, end reasons and the settings."""
+    _, cols, _ = grid(doc)
+    worlds = doc["worlds"]
+    lines = [
+        "# Robustness: controllers in physics worlds (table world beside them)", "",
+        f"{doc['starts']} starts per controller, the same in every world; {doc['steps']} steps "
+        f"per coverage run, {doc['navigation_steps']} per navigation run; seed {doc['seed']}; "
+        f"gait table `{doc['table']['source']}` (values sha256 {doc['table']['sha256'][:12]}).",
+        "Coverage chromosomes: % of the 64 inner squares reached (mean over the runs); "
+        "navigation sections: % of runs that dock.", "",
+        *matrix_table(doc),
+    ]  # fmt: skip
+    lines += ["", MEAN_AND_DROP, "",
               "## Worlds", "", "| world | what it changes | model sha256 | physics errors |",
               "|---|---|---|---|"]  # fmt: skip
     for w in worlds:
@@ -246,10 +260,12 @@ def write_outputs(out: Path, doc: dict[str, Any]) -> None:
 
 
 __all__ = [
+    "MEAN_AND_DROP",
     "ROBUSTNESS_OUTPUTS",
     "figure",
     "grid",
     "markdown",
+    "matrix_table",
     "same_table_runs",
     "summarise_matrix",
     "write_outputs",
