@@ -59,47 +59,22 @@ def build_parser() -> argparse.ArgumentParser:
         help="comma-separated physics worlds: built-in names or servobot variant "
         "files (named by their stem) (default: every built-in)",
     )
-    p.add_argument(
-        "--starts",
-        type=int,
-        default=_DEFAULTS.starts,
-        metavar="N",
-        help=f"seeded start poses per chromosome (default {_DEFAULTS.starts})",
-    )
-    p.add_argument(
-        "--steps",
-        type=int,
-        default=_DEFAULTS.steps,
-        metavar="N",
-        help=f"steps per coverage run (default {_DEFAULTS.steps}; navigation runs at most 100)",
-    )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=_DEFAULTS.seed,
-        help="seed of the start poses and the servo noise (default 0)",
-    )
-    p.add_argument(
-        "--table",
-        default=_DEFAULTS.table,
-        metavar="paper|PATH",
-        help="gait table of the table world (default: paper's Figure 4)",
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=DEFAULT_OUT,
-        metavar="DIR",
-        help=f"output folder (default {DEFAULT_OUT})",
-    )
+    d = _DEFAULTS
+    # fmt: off
+    p.add_argument("--starts", type=int, default=d.starts, metavar="N",
+                   help=f"seeded start poses per chromosome (default {d.starts})")
+    p.add_argument("--steps", type=int, default=d.steps, metavar="N",
+                   help=f"steps per coverage run (default {d.steps}; navigation runs at most 100)")
+    p.add_argument("--seed", type=int, default=d.seed,
+                   help="seed of the start poses and the servo noise (default 0)")
+    p.add_argument("--table", default=d.table, metavar="paper|PATH",
+                   help="gait table of the table world (default: paper's Figure 4)")
+    p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR",
+                   help=f"output folder (default {DEFAULT_OUT})")
     p.add_argument("--rrd", action="store_true", help="write run{k}.rrd recordings per cell")
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="K",
-        help="processes or Ray CPUs (default: one per core)",
-    )
+    p.add_argument("--workers", type=int, default=None, metavar="K",
+                   help="processes or Ray CPUs (default: one per core)")
+    # fmt: on
     add_executor_option(p, None, "process, serial with --workers 1")
     p.add_argument(
         "--resume",
