@@ -1,0 +1,125 @@
+"""The ranking measurement's pieces (issue 16): genome samples from a run folder, the table's
+prediction in an envelope, the agreement measures — on hand-made folders, no physics."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evolve.codec import format_chromosome
+from evolve.envelope import DEFAULT, NONE
+from evolve.evaluation import evaluate
+from evolve.settings import WorldSettings
+from evolve.starts import coverage_starts
+from evolve.table import PAPER_TABLE
+from servobot.robustness import cross
+from servobot.robustness.ranking import (
+    Genome,
+    RankingError,
+    agreement,
+    generation_bests,
+    seen,
+    table_runs,
+    top_genomes,
+)
+
+RNG = np.random.default_rng(11)
+SIZE = 20
+
+
+def _run_folder(tmp_path: Path) -> tuple[Path, dict[int, np.ndarray]]:
+    """Two populations × generations 0 and 7; fitness = individual index (pop 0) or its
+    reverse (pop 1); individuals 3 and 4 of pop 0 are twins."""
+    pops = tmp_path / "coverage" / "populations"
+    pops.mkdir(parents=True)
+    nav = RNG.integers(0, 2, (8, 30), dtype=np.uint8)
+    (tmp_path / "coverage" / "best_pop0.txt").write_text(
+        format_chromosome(np.concatenate([RNG.integers(0, 2, (8, 30), dtype=np.uint8), nav]))
+    )
+    finals = {}
+    for p in range(2):
+        for gen in (0, 7):
+            pop = RNG.integers(0, 2, (SIZE, 8, 30), dtype=np.uint8)
+            fit = np.arange(SIZE, dtype=float) if p == 0 else np.arange(SIZE, dtype=float)[::-1]
+            if p == 0:
+                pop[SIZE - 2] = pop[SIZE - 1]  # the two fittest are the same genome
+            best = pop[int(np.argmax(fit))]
+            np.savez(pops / f"pop{p}_gen{gen:04d}.npz", population=pop, fitness=fit, best=best)
+            if gen == 7:
+                finals[p] = pop
+    return tmp_path, finals
+
+
+def test_top_genomes_come_from_the_top_fraction_distinct_best_first(tmp_path: Path) -> None:
+    run, finals = _run_folder(tmp_path)
+    genomes = top_genomes(run, per_population=3, fraction=0.2)  # top 4 of 20 → 3 distinct
+    assert [g.label for g in genomes][:1] == ["p0g7r0"]
+    pop0 = [g.bits[:8] for g in genomes if g.label.startswith("p0")]
+    expect = [finals[0][19], finals[0][17], finals[0][16]]  # 18 is 19's twin: skipped
+    assert all(np.array_equal(a, b) for a, b in zip(pop0, expect, strict=True))
+    pop1 = [g.bits[:8] for g in genomes if g.label.startswith("p1")]
+    assert np.array_equal(pop1[0], finals[1][0])  # pop 1's fitness is reversed
+    nav = genomes[0].bits[8:]
+    assert all(np.array_equal(g.bits[8:], nav) and g.bits.shape == (16, 30) for g in genomes)
+
+
+def test_generation_bests_one_per_saved_generation(tmp_path: Path) -> None:
+    run, _ = _run_folder(tmp_path)
+    assert [g.label for g in generation_bests(run)] == [
+        "p0g0best", "p0g7best", "p1g0best", "p1g7best",
+    ]  # fmt: skip
+
+
+def test_a_folder_without_what_it_needs_names_the_file(tmp_path: Path) -> None:
+    with pytest.raises(RankingError, match="best_pop0.txt: missing"):
+        top_genomes(tmp_path, 2)
+    run, _ = _run_folder(tmp_path)
+    for f in (run / "coverage" / "populations").iterdir():
+        f.unlink()
+    with pytest.raises(RankingError, match="no saved populations"):
+        top_genomes(run, 2)
+
+
+def test_agreement_hand_worked() -> None:
+    table = np.array([[10.0, 12.0], [20.0, 20.0], [30.0, 34.0]])
+    physics = np.array([[9.0, 9.0], [25.0, 21.0], [20.0, 24.0]])
+    a = agreement(table, physics)
+    # means: table 11, 20, 32; physics 9, 23, 22 → ranks (1,2,3) vs (1,3,2): ρ = 1 − 6·2/24
+    assert a["spearman"] == pytest.approx(0.5)
+    assert a["mean_abs_delta"] == pytest.approx((1 + 3 + 5 + 1 + 10 + 10) / 6)
+    assert a["table_mean"] == pytest.approx(21.0) and a["physics_mean"] == pytest.approx(18.0)
+    flat = agreement(np.ones((3, 2)), physics)
+    assert math.isnan(flat["spearman"])
+
+
+def test_table_runs_none_is_one_exact_run_and_an_envelope_the_mean_of_its_draws() -> None:
+    bits = RNG.integers(0, 2, (3, 16, 30), dtype=np.uint8)
+    genomes = [Genome(str(k), b) for k, b in enumerate(bits)]
+    starts = coverage_starts(np.random.default_rng(1), 4, WorldSettings())
+    exact = evaluate(bits, starts, table=PAPER_TABLE, mode="coverage").inner_squares
+    assert np.array_equal(table_runs(genomes, starts, table=PAPER_TABLE), exact)
+    got = table_runs(genomes, starts, table=PAPER_TABLE, envelope=DEFAULT, seed=3, draws=3)
+    from evolve.envelope import key_of_test
+
+    draws = [evaluate(bits, starts, table=PAPER_TABLE, mode="coverage", envelope=DEFAULT,
+                      envelope_key=key_of_test(3, "ranking", d)).inner_squares
+             for d in range(3)]  # fmt: skip
+    assert np.allclose(got, np.mean(draws, axis=0))
+
+
+def test_seen_forces_the_block() -> None:
+    assert seen(DEFAULT, True).station_seen_p == 1.0
+    assert seen(DEFAULT, False).station_seen_p == 0.0
+    assert seen(NONE, False) == NONE
+
+
+def test_cross_prints_every_world_for_every_run(tmp_path: Path, capsys) -> None:
+    run, _ = _run_folder(tmp_path)
+    assert cross.main([str(run), "--starts", "3", "--draws", "2"]) == 0
+    out = capsys.readouterr().out
+    for name in cross.WORLDS:
+        assert f"| {name} |" in out
+    assert "kill zone" in out and "navigation docks" in out
