@@ -342,7 +342,8 @@ def test_servobot_anytime_end_to_end(nav_file, tmp_path, capsys):
     base, run = tmp_path / "none", tmp_path / "model"
     args = ["anytime", "--navigation", str(nav_file), *TINY_CLI]
     assert servobot([*args, "--method", "none", "--out", str(base)]) == 0
-    code = servobot([*args, "--method", "model", "--out", str(run), "--baseline", str(base)])
+    code = servobot([*args, "--method", "model", "--out", str(run), "--baseline", str(base),
+                     "--envelope", "default"])  # fmt: skip
     assert code == 0, capsys.readouterr().err
     assert "anytime (model): final bests on 2 fresh starts" in capsys.readouterr().out
     folder = run / "anytime"
@@ -362,6 +363,8 @@ def test_servobot_anytime_end_to_end(nav_file, tmp_path, capsys):
     assert summary["baseline"] == str(base)
     settings = json.loads((folder / "settings.json").read_text())
     assert settings["AnytimeSettings"]["physics_steps"] == 3 and settings["model_sha256"]
+    assert settings["Envelope"] == DEFAULT.to_dict()  # the populations evolved in it
+    assert "Envelope" not in json.loads((base / "anytime" / "settings.json").read_text())
 
 
 def test_run_anytime_resumes_after_an_interrupt(nav_file, tmp_path):

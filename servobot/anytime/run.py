@@ -46,6 +46,7 @@ from evolve.anytime import (
     punctuation_generations,
 )
 from evolve.codec import format_chromosome, write_chromosome
+from evolve.envelope import NONE, Envelope
 from evolve.interpreter import END_NAMES, run
 from evolve.population import OnGeneration
 from evolve.settings import GASettings, WorldSettings
@@ -197,6 +198,7 @@ def run_anytime(
     on_generation: OnGeneration | None = None,
     on_punctuation: OnPunctuation | None = None,
     on_physics_run: Callable[[], None] | None = None,
+    envelope: Envelope = NONE,
 ) -> dict[str, Any]:
     """Anytime learning into ``out/anytime`` (module docstring); returns the summary.
 
@@ -205,6 +207,7 @@ def run_anytime(
     servo noise as in validation), ``arena``, ``model``: the physics robot. ``executor``
     (default a process pool of one worker per core) runs every batch of physics runs.
     ``baseline``: a ``method none`` run of the same seed, drawn beside this one in the figure.
+    ``envelope`` (SPEC §9): the table world the populations evolve in (default the exact one).
     Summary keys: ``method``, ``punctuations`` (per punctuation: ``generation``, ``tested``
     (``population``, ``index``, ``rank``, ``table_fitness``, ``physics_fitness``, ``ratio``),
     ``bias`` (method bias: per population the mean ratio the untested get) and
@@ -217,7 +220,8 @@ def run_anytime(
     arena = arena or ArenaSettings()
     check_anytime(ga, settings, None)
     control = None if baseline is None else read_baseline(baseline, ga.seed)
-    stage = dataclasses.replace(coverage_stage(world, navigation), extra_settings=(settings,))
+    stage = dataclasses.replace(coverage_stage(world, navigation, envelope),
+                                extra_settings=(settings,))  # fmt: skip
     doc = stage_settings_doc(stage, ga, world, table) | {
         "command": "anytime",
         "PhysicsSettings": jsonable(physics),

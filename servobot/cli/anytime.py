@@ -30,7 +30,13 @@ from evolve.settings import WorldSettings
 from infra.bounds import check_int
 from infra.io import check_output_dir
 from servobot.cli.evolve import CliError, ga_settings, load_navigation, run_evolution
-from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
+from servobot.cli.options import (
+    add_envelope_option,
+    add_executor_option,
+    add_model_option,
+    envelope_from_args,
+    executor_from_args,
+)
 from servobot.progress import GenerationBars, RunBar
 
 PROG = "servobot anytime"
@@ -70,6 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--baseline", type=Path, default=None, metavar="DIR",
                    help="a --method none run of the same seed (its --out), drawn beside this "
                    "one in figure_anytime.png")  # fmt: skip
+    add_envelope_option(p)
     add_executor_option(p, "process", "process (a pool of --workers)")
     p.add_argument("--workers", type=int, default=None, help="processes or Ray CPUs (one per core)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"run folder ({DEFAULT_OUT})")
@@ -132,7 +139,7 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
             args.out, navigation=navigation, table=table, ga=ga, world=WorldSettings(),
             settings=settings, model=args.model, executor=executor_from_args(args),
             baseline=args.baseline, resume=args.resume, force=args.force, on_generation=bars,
-            on_physics_run=physics_bar,
+            on_physics_run=physics_bar, envelope=envelope_from_args(args),
         )  # fmt: skip
     finally:
         physics_bar.close()
