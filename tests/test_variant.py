@@ -197,7 +197,11 @@ def test_reproduce_model_runs_the_whole_pipeline_for_the_variant(files, tmp_path
     )  # fmt: skip
     out = tmp_path / "run"
     res = reproduce(out, settings=settings, workers=1, log=lambda _m: None)
-    assert set(res["stages"]) == {"calibration", "navigation", "coverage", "validation"}
+    assert set(res["stages"]) == {
+        "calibration", "navigation", "coverage", "validation", "robustness",
+    }  # fmt: skip
+    assert "not run" in res["stages"]["robustness"]["note"]  # its worlds vary the shipped robot
+    assert not (out / "robustness" / "robustness.json").exists()
     doc = json.loads((out / "calibration" / "gait_table.json").read_text())
     assert doc["model_sha256"] == model_sha256(files["heavy"])
     assert doc["variant"] == HEAVY.to_dict()
