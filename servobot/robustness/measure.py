@@ -25,14 +25,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from evolve.codec import format_chromosome
 from evolve.envelope import DEFAULT, Envelope, load_envelope
 from evolve.table import load_table
 from infra.io import atomic_write_text
+from servobot.progress import RunBar, progress_bar
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
 from servobot.robustness.ranking import (
+    RankingError,
     agreement,
     generation_bests,
     seen,
@@ -74,11 +75,14 @@ def tune(genomes, starts, table, phys, seed: int, draws: int, steps: int) -> lis
     """Every envelope of ``TUNE_GRID``, scored on the physics runs ``phys`` by world."""
     rows = []
     combos = list(itertools.product(*TUNE_GRID.values()))
-    for values in tqdm(combos, desc="tune", disable=not sys.stderr.isatty()):
+    bar = progress_bar(desc="tune", unit="envelope", total=len(combos))
+    for values in combos:
+        bar.update(1)
         env = Envelope(**dict(zip(TUNE_GRID, values, strict=True)), station_seen_p=0.5)
         tab = {w: table_runs(genomes, starts, table=table, envelope=seen(env, w != "shipped"),
                              seed=seed, draws=draws, steps=steps) for w in phys}  # fmt: skip
         rows.append({"envelope": env.to_dict()} | _score(tab, phys))
+    bar.close()
     return sorted(rows, key=lambda r: (-r["spearman_mean"], r["abs_delta_mean"]))
 
 
@@ -106,8 +110,11 @@ def _markdown(doc: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m servobot.robustness.measure", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="python -m servobot.robustness.measure",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--run", type=Path, required=True, help="an evolve run folder")
     p.add_argument("--envelope", default="none", help="the arm's envelope (its own world)")
     p.add_argument("--table", default="paper")
@@ -132,17 +139,19 @@ def main(argv: list[str] | None = None) -> int:
         f.parent.mkdir(parents=True, exist_ok=True)
         f.write_text(format_chromosome(g.bits) + "\n")
         files.append(f)
-    settings = RobustnessSettings(worlds=WORLDS, starts=a.starts, steps=a.steps, seed=a.seed,
-                                  table=a.table)
+    settings = RobustnessSettings(
+        worlds=WORLDS, starts=a.starts, steps=a.steps, seed=a.seed, table=a.table
+    )
     matrix = a.out / "matrix"
-    bar = tqdm(total=len(files) * len(WORLDS) * a.starts, desc="physics", mininterval=60)
+    bar = RunBar("physics", total=len(files) * len(WORLDS) * a.starts)
     doc = run_matrix(files, matrix, settings, workers=a.workers,
                      resume=(matrix / "settings.json").exists(),
-                     on_run=lambda _r: bar.update(), on_skip=bar.update)  # fmt: skip
+                     on_run=bar, on_skip=bar.advance)  # fmt: skip
     bar.close()
     starts = np.asarray(doc["start_poses"]["coverage"], dtype=float)
     names = [Path(c["file"]).stem for c in doc["table_per_chromosome"]]
-    assert names == [g.label for g in genomes]
+    if names != [g.label for g in genomes]:
+        raise RankingError(f"{matrix}: holds other genomes than this sample; use another --out")
     phys_all = {w: physics_runs(matrix, w, names, a.starts) for w in WORLDS}
     out: dict[str, Any] = {"run": str(a.run), "envelope_name": a.envelope,
                            "envelope": envelope.to_dict(), "genomes": len(genomes),
@@ -152,8 +161,9 @@ def main(argv: list[str] | None = None) -> int:
         rows = slice(offset, offset + len(gs))
         offset += len(gs)
         phys = {w: v[rows] for w, v in phys_all.items()}
-        own = table_runs(gs, starts, table=table, envelope=envelope, seed=a.seed, draws=a.draws,
-                         steps=a.steps)
+        own = table_runs(
+            gs, starts, table=table, envelope=envelope, seed=a.seed, draws=a.draws, steps=a.steps
+        )
         exact = table_runs(gs, starts, table=table, steps=a.steps)
         out["agreement"][sample] = {
             "own world": {w: agreement(own, phys[w]) for w in WORLDS},
@@ -163,8 +173,9 @@ def main(argv: list[str] | None = None) -> int:
         top = samples["top20"]
         phys = {w: v[: len(top)] for w, v in phys_all.items()}
         out["tune"] = tune(top, starts, table, phys, a.seed, a.draws, a.steps)
-        out["default_rank"] = next(i for i, r in enumerate(out["tune"]) if
-                                   r["envelope"] == DEFAULT.to_dict())
+        out["default_rank"] = next(
+            i for i, r in enumerate(out["tune"]) if r["envelope"] == DEFAULT.to_dict()
+        )
     atomic_write_text(a.out / "ranking.json", json.dumps(out, indent=1))
     atomic_write_text(a.out / "ranking.md", _markdown(out))
     print(_markdown(out))
