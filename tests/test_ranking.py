@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from evolve.codec import format_chromosome
+from evolve.codec import format_chromosome, read_chromosome
 from evolve.envelope import DEFAULT, NONE
 from evolve.evaluation import evaluate
 from evolve.settings import WorldSettings
@@ -122,4 +122,11 @@ def test_cross_prints_every_world_for_every_run(tmp_path: Path, capsys) -> None:
     out = capsys.readouterr().out
     for name in cross.WORLDS:
         assert f"| {name} |" in out
+    # the last world has no random aspect: every draw is the one run, % of the 64 inner squares
+    bits = np.stack([read_chromosome(run / "coverage" / "best_pop0.txt")])
+    starts = coverage_starts(np.random.default_rng(7), 3, WorldSettings())
+    want = evaluate(bits, starts, table=PAPER_TABLE, mode="coverage", envelope=cross.SEEN,
+                    envelope_key=(7, 0)).inner_squares.mean() / 64 * 100  # fmt: skip
+    row = next(line for line in out.splitlines() if line.startswith("| block always seen"))
+    assert row == f"| block always seen, exact moves | {want:.1f} ({want:.1f}) |"
     assert "kill zone" in out and "navigation docks" in out

@@ -13,7 +13,6 @@ draws per start. Prints % of the 64 inner squares, per finalist and mean.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 from pathlib import Path
 
@@ -26,20 +25,18 @@ from evolve.interpreter import END_NAMES
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts, navigation_starts
 from evolve.table import load_table
-from servobot.robustness.ranking import Genome, table_runs
+from servobot.robustness.ranking import Genome, seen, table_runs
 
-INNER = 64
-"""Inner squares (SPEC §3)."""
+SEEN = seen(NONE, True)
+"""The exact world with the station block always seen."""
 WORLDS: dict[str, Envelope] = {
     "exact": NONE,
     "default": DEFAULT,
-    "default, block always seen": dataclasses.replace(DEFAULT, station_seen_p=1.0),
-    "default, block never seen": dataclasses.replace(DEFAULT, station_seen_p=0.0),
-    "block always seen, exact moves": dataclasses.replace(NONE, station_seen_p=1.0),
+    "default, block always seen": seen(DEFAULT, True),
+    "default, block never seen": seen(DEFAULT, False),
+    "block always seen, exact moves": SEEN,
 }
 """The table worlds each finalist runs in."""
-SEEN = dataclasses.replace(NONE, station_seen_p=1.0)
-"""The exact world with the station block always seen."""
 NAVIGATION_STARTS = 1000
 """Uniform navigation starts (SPEC §6 region) of the navigation section's docking rate."""
 KILL, DOCKED = END_NAMES.index("kill zone"), END_NAMES.index("docked")
@@ -55,6 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=7)
     a = p.parse_args(argv)
     table = load_table(a.table)
+    n_inner = WorldSettings().inner_square_count
     starts = coverage_starts(np.random.default_rng(a.seed), a.starts, WorldSettings())
     print("| table world | " + " | ".join(str(r) for r in a.runs) + " |")
     print("|---|" + "---|" * len(a.runs))
@@ -64,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
         cells = []
         for r in a.runs:
             inner = table_runs(finalists[r], starts, table=table, envelope=env, seed=a.seed,
-                               draws=a.draws).mean(axis=1) / INNER * 100  # fmt: skip
+                               draws=a.draws).mean(axis=1) / n_inner * 100  # fmt: skip
             cells.append(f"{inner.mean():.1f} ({', '.join(f'{v:.1f}' for v in inner)})")
         print(f"| {name} | " + " | ".join(cells) + " |")
     print("\nEnds (exact world and block always seen, one draw per start): kill-zone ends of the "
