@@ -91,18 +91,28 @@ class Envelope:
     against physics."""
 
     def __post_init__(self) -> None:
-        for name in ("scatter_scale", "bias_scale", "station_seen_p", "reach_units"):
+        for name in ("scatter_scale", "bias_scale", "station_seen_p", "reach_units",
+                     "warmup_fraction"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise EnvelopeError(f"{name} must be a finite number, got {v!r}")
             if v < 0.0:
                 raise EnvelopeError(f"{name} must be ≥ 0, got {v!r}")
             object.__setattr__(self, name, float(v))
+        if self.warmup_fraction >= 1.0:
+            raise EnvelopeError(f"warmup_fraction must be in [0, 1), got {self.warmup_fraction!r}")
         if self.station_seen_p > 1.0:
             raise EnvelopeError(f"station_seen_p must be a probability in [0, 1], got "
                                 f"{self.station_seen_p!r}")  # fmt: skip
         if not isinstance(self.station_stops, bool):
             raise EnvelopeError(f"station_stops must be true or false, got {self.station_stops!r}")
+
+    warmup_fraction: float = 0.0
+    """[chosen] Incremental evolution: the first ``round(warmup_fraction × generations)``
+    generations of a stage train in the world of §3, the rest in the envelope (its tests
+    always run in it). A population first learns the exact task, then to hold it across the
+    variation (Harvey, Husbands & Cliff 1994; Nolfi & Floreano 2000). 0: the envelope from
+    generation 0. In [0, 1)."""
 
     @property
     def varies_motion(self) -> bool:
@@ -111,8 +121,12 @@ class Envelope:
 
     @property
     def varies(self) -> bool:
-        """Whether any aspect is on (else the world of §3)."""
-        return self != NONE
+        """Whether any aspect is on (else the world of §3; the warm-up is no aspect)."""
+        return dataclasses.replace(self, warmup_fraction=0.0) != NONE
+
+    def warmup_generations(self, generations: int) -> int:
+        """Generations of a stage of ``generations`` that train in the world of §3."""
+        return round(self.warmup_fraction * generations)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

@@ -22,6 +22,7 @@ Progress reaches the outside through ``on_generation(record)``, never prints.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 from collections.abc import Callable, Sequence
@@ -85,8 +86,9 @@ class Stage:
     ``starts``. The test starts always come from ``starts``."""
     envelope: Envelope = NONE
     """The envelope of variation (SPEC §9) every evaluation of the stage runs in: training
-    with the key (seed, generation), tests with ``evolve.envelope.key_of_test``; ``NONE``: the
-    world of §3. A stage evolved in an envelope reports its tests in both worlds."""
+    with the key (seed, generation) once past its warm-up (``Envelope.warmup_fraction``; the
+    warm-up trains in the world of §3), tests with ``evolve.envelope.key_of_test``; ``NONE``:
+    the world of §3. A stage evolved in an envelope reports its tests in both worlds."""
 
     def genomes(self, sections: np.ndarray) -> np.ndarray:
         """Chromosomes the kernel runs: the sections, or sections + navigation (P, 16, 30)."""
@@ -304,8 +306,11 @@ class PopulationRun:
             starts = self.stage.starts(self.rng, n, self.world)
         else:
             starts = draw(self.rng, n, self.world, self.generation)
+        stage = self.stage
+        if self.generation < stage.envelope.warmup_generations(self.ga.generations):
+            stage = dataclasses.replace(stage, envelope=NONE)
         run_fit, ev, first, inverse = evaluate_sections(
-            self.pop, starts, self.stage, self.table, self.world, (self.ga.seed, self.generation)
+            self.pop, starts, stage, self.table, self.world, (self.ga.seed, self.generation)
         )
         docked = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == END_DOCKED)
         self._pending = Generation(

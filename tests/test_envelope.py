@@ -540,3 +540,21 @@ def test_navigation_and_colony_stages_report_the_envelope_beside_the_plain_figur
                            table=load_table("paper"), ga=ga, envelope=LOUD)  # fmt: skip
     assert col["envelope"] == LOUD.to_dict()
     assert len(col["envelope_final_inner_percent"]) == len(col["final_inner_percent"]) == 2
+
+
+def test_warmup_trains_the_first_generations_in_the_exact_world(tmp_path):
+    # 18 generations, warm-up 0.5: generations 0-8 train as envelope none does, 9 on in LOUD.
+    staged = dataclasses.replace(LOUD, warmup_fraction=0.5)
+    assert staged.varies and staged.warmup_generations(TINY.generations) == 9
+    assert not dataclasses.replace(NONE, warmup_fraction=0.5).varies
+
+    def history(out, envelope):
+        _coverage(out, envelope=envelope)
+        return (out / "coverage" / "history_pop1.csv").read_text().splitlines()[1:]
+
+    runs = (("none", NONE), ("loud", LOUD), ("warm", staged))
+    exact, loud, warm = (history(tmp_path / name, env) for name, env in runs)
+    assert warm[:9] == exact[:9] and loud[0] != exact[0]
+    assert warm[9] != exact[9]  # same population at 9, scored in the envelope from then on
+    with pytest.raises(EnvelopeError, match="warmup_fraction"):
+        Envelope(warmup_fraction=1.0)

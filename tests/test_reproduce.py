@@ -18,11 +18,13 @@ from servobot.cli.reproduce import main
 from servobot.reproduce.run import (
     ReproduceError,
     ReproduceSettings,
+    best_finalists,
     quick_settings,
     read_done,
     reproduce,
     stage_key,
 )
+from servobot.reproduce.settings import check_settings
 from servobot.robustness.worlds import BUILT_IN
 
 TINY = ReproduceSettings(
@@ -30,7 +32,7 @@ TINY = ReproduceSettings(
     navigation_populations=1, navigation_population_size=6, navigation_generations=2,
     coverage_populations=2, coverage_population_size=6, coverage_generations=2, test_starts=4,
     validate_starts=2, validate_max_steps=6, validate_navigation_starts=2, robustness_starts=1,
-    seed=3,
+    robustness_finalists=2, seed=3,
 )  # fmt: skip
 """Smaller than --quick: seconds, but every stage and file of a full run."""
 
@@ -235,7 +237,18 @@ def test_settings_keys_and_presets() -> None:
     assert stage_key(env, "navigation")["envelope"] == "default"
     assert "robustness_starts" in stage_key(full, "robustness")
     assert (full.robustness_starts, quick.robustness_starts) == (2, 1)
+    assert (full.robustness_finalists, quick.robustness_finalists) == (5, 1)
+    assert "robustness_finalists" in stage_key(full, "robustness")
+    with pytest.raises(ReproduceError, match="robustness_finalists"):
+        check_settings(dataclasses.replace(full, robustness_finalists=6))
     assert quick.validate_max_steps == full.robustness(Path("d")).steps == 600
+
+
+def test_the_matrix_runs_the_best_finalists_first() -> None:
+    # Figure 9 finals per population: 4 is best, then 1 and 3 tie (lower index first).
+    finals = [20.0, 40.0, 10.0, 40.0, 55.0]
+    assert best_finalists(finals, 5) == [4, 1, 3, 0, 2]
+    assert best_finalists(finals, 1) == [4]
 
 
 def test_cli_rejects_bad_budget(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -79,8 +79,8 @@ def _run(args: argparse.Namespace) -> int:
     matrix = len(ROBUSTNESS_WORLDS) * per_world
     runs = RunBar(  # shown at its first run, not before the checks
         "physics runs", not args.no_progress,
-        total=settings.coverage_populations * (settings.validate_starts + matrix)
-        + 2 * settings.validate_navigation_starts,
+        total=settings.coverage_populations * settings.validate_starts
+        + settings.robustness_finalists * matrix + 2 * settings.validate_navigation_starts,
     )  # fmt: skip
     try:
         res = reproduce(

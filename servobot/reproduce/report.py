@@ -275,7 +275,8 @@ def _robustness_section(out: Path, s: ReproduceSettings) -> list[str]:
     if doc is None:
         return [*lines, "*(robustness/robustness.json not written)*", ""]
     lines += [
-        f"Each finalist (`coverage/best_pop{{k}}.txt`), unchanged, from the same {doc['starts']} "
+        f"The {finalists_phrase(s)} (`coverage/best_pop{{k}}.txt`), unchanged, from the same "
+        f"{doc['starts']} "
         f"seeded coverage starts (seed {doc['seed']}), {doc['steps']} steps, in the table world "
         "(the calibrated table) and in every built-in physics world "
         "(`servobot.robustness.worlds`); % of the 64 inner squares reached, mean over the runs "
@@ -295,6 +296,14 @@ def _robustness_section(out: Path, s: ReproduceSettings) -> list[str]:
         "",
     ]
     return lines
+
+
+def finalists_phrase(s: ReproduceSettings) -> str:
+    """Which finalists the matrix ran: all of them, or the best n by Figure 9."""
+    n = s.robustness_finalists
+    if n == s.coverage_populations:
+        return f"{n} finalists" if n > 1 else "finalist"
+    return f"{n} best finalists by Figure 9" if n > 1 else "best finalist by Figure 9"
 
 
 def _envelope_line(s: ReproduceSettings) -> str:

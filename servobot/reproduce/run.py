@@ -156,7 +156,7 @@ def reproduce_need(s: ReproduceSettings, world: WorldSettings, workers: int | No
         n = s.validate_navigation_starts
         need += validation_need(n, world.navigation_steps, workers, False)[0]
     if s.model is None:
-        for _ in range(s.coverage_populations * len(ROBUSTNESS_WORLDS)):
+        for _ in range(s.robustness_finalists * len(ROBUSTNESS_WORLDS)):
             need += validation_need(s.robustness_starts, s.validate_max_steps, workers, False)[0]
     return need
 
@@ -273,14 +273,17 @@ class _Pipeline:
         ``DIR/robustness``; the matrix resumes cell by cell. Not run for another robot
         (``model``): the matrix's worlds are variants of the shipped one."""
         folder = self.out / "robustness"
-        n = self.s.coverage_populations
+        n = self.s.robustness_finalists
 
         def body() -> dict[str, Any]:
             if self.s.model is not None:
                 self.log("[robustness] the matrix's worlds vary the shipped robot; not run for "
                          f"{self.s.model}")  # fmt: skip
                 return {"note": "not run: the matrix's worlds are variants of the shipped robot"}
-            finalists = [self.out / "coverage" / f"best_pop{k}.txt" for k in range(n)]
+            coverage = read_json(self.out / "coverage" / "summary.json", what="coverage summary",
+                                 error=ReproduceError)
+            finalists = [self.out / "coverage" / f"best_pop{k}.txt"
+                         for k in best_finalists(coverage["final_inner_percent"], n)]  # fmt: skip
             doc = run_matrix(
                 finalists, folder, self.s.robustness(self.out), executor=self.executor,
                 resume=True, on_run=self.on_run, log=self.log,
@@ -356,6 +359,12 @@ def _envelope_info(summary: dict[str, Any], figure: str) -> dict[str, Any]:
     if "envelope" not in summary:
         return {}
     return {"envelope": summary["envelope"], figure: summary[figure]}
+
+
+def best_finalists(inner_percent: list[float], n: int) -> list[int]:
+    """Indices of the ``n`` best populations by their final Figure 9 test (inner %), best
+    first; ties by index."""
+    return sorted(range(len(inner_percent)), key=lambda k: (-inner_percent[k], k))[:n]
 
 
 def robustness_info(doc: dict[str, Any]) -> dict[str, Any]:
@@ -494,6 +503,7 @@ __all__ = [
     "reproduce",
     "reproduce_need",
     "resolve_settings",
+    "best_finalists",
     "robustness_info",
     "stage_key",
     "validation_starts",

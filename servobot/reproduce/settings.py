@@ -60,17 +60,18 @@ class ReproduceSettings:
     many of the coverage finalists' hand-off poses and powers (``coverage/handoffs.csv``)."""
     robustness_starts: int = 2
     """Start poses per finalist per physics world in the robustness stage (the physics test
-    matrix, SPEC §9: every coverage finalist × every built-in world of
+    matrix, SPEC §9: coverage finalists × every built-in world of
     ``servobot.robustness.worlds``, ``validate_max_steps`` steps, the table world beside).
     Default 2: 2 × 6 worlds × 5 finalists = 60 physics runs, 10 per world. Budget: the whole
-    reproduction within 1.3 × its 12.6 min without the stage (2 cores), ≈ 3.8 min, ≈ 50
-    full-length runs at the validation stage's rate. Each cell is one ``validate`` call with
-    its own worker pool and waits for its slowest run: 12 cells of 1-step runs took 2.3 s a
-    cell with 1 start, 3.8 s with 2 (load 4–5 on 2 cores), so ≈ 1 min of overhead for 30
-    cells; 2 starts keep both workers of a 2-core machine busy, so 1 start would save little
-    wall time and halve the runs. Expected ≈ 3.5 min when the finalists fall early in
-    ``heavy``, ``weak`` and ``slippery``, as the one measured finalist did
-    (docs/robustness.md); ≈ 5 min (1.4 ×) if every run lasts its 600 steps."""
+    reproduction within 1.3 × its wall time without the stage (issue 16), ≈ 30 % more physics
+    than the validation stage's 100 coverage + 50 navigation runs: the matrix's runs go to
+    the workers as one batch (``servobot.validation.lone.execute``), so it costs its runs'
+    CPU time over the workers, and the heavy, weak and slippery robots' runs end early
+    (docs/robustness.md, "Why 2 starts")."""
+    robustness_finalists: int = 5
+    """How many coverage finalists the robustness stage runs, the best first by their Figure 9
+    test at the last generation (``coverage/summary.json`` ``final_inner_percent``; ties by
+    population index). Default every one of the 5."""
     envelope: str = "none"
     """Envelope of variation (SPEC §9) that navigation and coverage evolve in: ``none`` (the
     exact world of SPEC §3: the reproduction as before, bit for bit), ``default``
@@ -139,7 +140,7 @@ def quick_settings(**overrides: Any) -> ReproduceSettings:
     individuals, 256 navigation and 128 coverage generations, 5 calibration cycles, and 3
     full-length (600-step) validation starts per finalist, so that docking and recharging
     show in physics, 5 + 5 navigation runs, and a robustness matrix of 1 full-length start
-    per finalist per world (30 runs)."""
+    of the best finalist per world (6 runs)."""
     base = ReproduceSettings(
         calibration_cycles=5,
         navigation_population_size=64,
@@ -149,6 +150,7 @@ def quick_settings(**overrides: Any) -> ReproduceSettings:
         validate_starts=3,
         validate_navigation_starts=5,
         robustness_starts=1,
+        robustness_finalists=1,
     )
     return dataclasses.replace(base, **overrides)
 
@@ -163,7 +165,7 @@ _STAGE_FIELDS: dict[str, tuple[str, ...]] = {
     ),
     "coverage": ("coverage_populations", "coverage_population_size", "coverage_generations"),
     "validation": ("validate_starts", "validate_max_steps", "validate_navigation_starts"),
-    "robustness": ("robustness_starts",),
+    "robustness": ("robustness_starts", "robustness_finalists"),
 }
 _ENVELOPE_STAGES = STAGES[STAGES.index("navigation") :]
 """The stages an envelope affects: navigation, coverage and those after them."""
@@ -202,6 +204,9 @@ def check_settings(s: ReproduceSettings) -> None:
         low = 0 if f.name in ("calibration_settle_cycles", "seed") else 1
         if not isinstance(v, int) or v < low:
             raise ReproduceError(f"setting {f.name} must be an integer ≥ {low}, got {v!r}")
+    if s.robustness_finalists > s.coverage_populations:
+        raise ReproduceError(f"setting robustness_finalists ({s.robustness_finalists}) exceeds "
+                             f"the coverage finalists ({s.coverage_populations})")  # fmt: skip
 
 
 __all__ = [

@@ -3,8 +3,9 @@
 ``run_matrix(chromosomes, out, settings)`` runs each controller from the same N seeded starts
 in the table world (SPEC §3) and in each physics world of ``settings.worlds``
 (``servobot.robustness.worlds``), unchanged. Each (controller, world) cell is one call of
-``servobot.validation.lone.validate`` — so the table world and physics run exactly as
-``servobot validate`` runs them — into ``DIR/runs/{world}/{controller}/``::
+``servobot.validation.lone`` validation plan — so the table world and physics run exactly as
+``servobot validate`` runs them — into ``DIR/runs/{world}/{controller}/``; every cell's starts
+go to the executor as one batch (``servobot.validation.lone.execute``)::
 
     DIR/settings.json              the run's ownership record (infra.rundir)
     DIR/models/{world}.xml         each built-in variant world's robot (servobot variant)
@@ -65,11 +66,12 @@ from servobot.validation.lone import (
     ValidationError,
     check_chromosome,
     clear_navigation_starts,
+    execute,
     jsonable,
     load_checked_table,
     mode_of,
+    plan_validation,
     start_record,
-    validate,
     validation_need,
     validation_settings,
 )
@@ -294,10 +296,11 @@ def run_matrix(
 ) -> dict[str, Any]:
     """Run the matrix into ``out`` and return ``robustness.json``'s document.
 
-    ``executor`` (or a pool of ``workers``; ``infra.executors.make_executor``) runs each cell's
-    starts; ``on_run(record)`` is called as each physics run finishes, ``on_skip(n)`` with a
-    cell's run count when a finished cell is read back (``resume``), ``log(message)`` with
-    warnings (a table file without a model hash). Every input is checked before the folder is
+    ``executor`` (or a pool of ``workers``; ``infra.executors.make_executor``) runs every
+    cell's starts as one batch (each cell's report is written when its last run ends);
+    ``on_run(record)`` is called as each physics run finishes, ``on_skip(n)`` with a cell's run
+    count when a finished cell is read back (``resume``), ``log(message)`` with warnings (a
+    table file without a model hash). Every input is checked before the folder is
     taken (``InputError`` subclasses: ``RobustnessError``, ``WorldError``, ``BoundsError``,
     ``ValidationError``, ``RunDirError``).
     """
@@ -317,6 +320,7 @@ def run_matrix(
     with run_folder(out, record, owned=ROBUSTNESS_FILES, resume=resume, force=force):
         for w in worlds:
             materialise(w, out / MODELS_DIR)
+        plans, todo = [], []
         for cell in cells:
             key = (cell.world.name, cell.controller.name)
             done = finished_report(cell, _expected(cell, table.values, settings))
@@ -325,13 +329,16 @@ def run_matrix(
                 if on_skip is not None:
                     on_skip(len(cell.starts))
                 continue
-            reports[key] = validate(
+            todo.append(key)
+            plans.append(plan_validation(
                 cell.controller.bits, cell.starts, table=table, arena=cell.world.arena,
-                out_dir=cell.folder, rrd=settings.rrd, executor=ex, max_steps=cell.steps,
-                seed=settings.seed, model=cell.model, on_run=on_run, force=True,
+                out_dir=cell.folder, rrd=settings.rrd, max_steps=cell.steps,
+                seed=settings.seed, model=cell.model, force=True,
+                workers=None if executor else workers,
                 meta={"world": cell.world.name, "chromosome_file": str(cell.controller.file),
                       "command": "servobot robustness"},
-            )  # fmt: skip
+            ))  # fmt: skip
+        reports.update(zip(todo, execute(plans, ex, on_run), strict=True))
         doc = summarise_matrix(rows, [_controller_row(c) for c in controllers], reports,
                                _head(settings, cells, info))  # fmt: skip
         write_outputs(out, doc)

@@ -411,25 +411,16 @@ Writer = Callable[[Path, dict[str, Any], dict[str, np.ndarray]], None]
 """Writes a finished validation's files: (folder, report, tracks by ``{world}_{index}``)."""
 
 
-def _run_jobs(
-    ex: Executor, jobs: list[Any], work: Callable[[Any], Record],
-    on_run: Callable[[Record], None] | None,
-) -> list[Record]:  # fmt: skip
-    """Every job's record in start order; a worker that failed gives a record with its error."""
-    runs: list[Record] = [{} for _ in jobs]
-    with contextlib.closing(ex.imap(work, jobs)) as outcomes:  # stops workers on Ctrl-C
-        for k, outcome in outcomes:
-            if isinstance(outcome, Failed):
-                rec: Record = {
-                    "index": k, "start": start_record(jobs[k].start), "table": None,
-                    "physics": None, "error": outcome.message, "tracks": {},
-                }  # fmt: skip
-            else:
-                rec = outcome.value
-            runs[k] = rec
-            if on_run is not None:
-                on_run(rec)
-    return runs
+def _apply(work_and_job: tuple[Callable[[Any], Record], Any]) -> Record:
+    """``work(job)``: one item of a batch that mixes validations (module level: picklable)."""
+    work, job = work_and_job
+    return work(job)
+
+
+def _failed_record(job: Any, message: str) -> Record:
+    """The record of a run whose worker failed: its start and the error, no results."""
+    return {"index": job.index, "start": start_record(job.start), "table": None,
+            "physics": None, "error": message, "tracks": {}}  # fmt: skip
 
 
 def validation_settings(
@@ -466,38 +457,78 @@ def report_head(
     }
 
 
+@dataclass(frozen=True)
+class Plan:
+    """A checked validation, ready to run: its jobs and how its report is made and written
+    (``plan_validation``; ``execute`` runs one or several plans as one batch)."""
+
+    jobs: list[Any]
+    work: Callable[[Any], Record]
+    """Runs one job in both worlds and gives its record (``Kind.work``)."""
+    head: dict[str, Any]
+    """The report's fields besides its runs and summary."""
+    summary: Summary
+    write: Writer
+    out: Path | None
+    """The run folder (None: nothing written)."""
+    record: dict[str, Any]
+    """The run folder's ownership record."""
+    disk: int
+    """Bytes of the recordings."""
+    force: bool
+
+
 def execute(
-    jobs: list[Any],
-    work: Callable[[Any], Record],
-    *,
-    ex: Executor,
-    head: dict[str, Any],
-    summary: Summary,
-    write: Writer,
-    out: Path | None,
-    record: dict[str, Any],
-    disk: int,
-    force: bool,
-    on_run: Callable[[Record], None] | None,
-) -> dict[str, Any]:
-    """Run the jobs (``work(job)`` each, on ``ex``) and return the report; with ``out``, in
-    that run folder (``record`` its ownership record; ``disk`` the recordings' bytes) and
-    written there by ``write``."""
+    plans: list[Plan], ex: Executor, on_run: Callable[[Record], None] | None = None
+) -> list[dict[str, Any]]:
+    """Run every plan's jobs as one batch on ``ex`` and return each plan's report, in order.
 
-    def run_all() -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    Every plan's run folder is taken (and its free disk space checked) before any run, so a
+    refused folder costs no work; a plan's report is written as soon as its last run ends
+    (an interrupted batch keeps the finished plans). One batch keeps every worker busy where
+    one batch per plan would wait for each plan's slowest run and start a pool per plan.
+    A plan's summary ``wall_s`` is the time from the batch's start to its last run's end.
+    """
+    items = [(plan.work, job) for plan in plans for job in plan.jobs]
+    owner = [(i, k) for i, plan in enumerate(plans) for k in range(len(plan.jobs))]
+    runs: list[list[Record]] = [[{} for _ in plan.jobs] for plan in plans]
+    left = [len(plan.jobs) for plan in plans]
+    reports: list[dict[str, Any]] = [{} for _ in plans]
+    with contextlib.ExitStack() as folders:
+        for plan in plans:
+            if plan.out is not None:
+                folders.enter_context(run_folder(plan.out, plan.record, owned=VALIDATION_FILES,
+                                                 resumable=False, force=plan.force))  # fmt: skip
+                check_free_space(plan.out, plan.disk, what="the recordings")
         t0 = time.perf_counter()
-        runs = _run_jobs(ex, jobs, work, on_run)
-        wall = time.perf_counter() - t0
-        tracks = {f"{w}_{r['index']}": t for r in runs for w, t in r.pop("tracks", {}).items()}
-        return head | {"runs": runs, "summary": summary(runs, wall)}, tracks
 
-    if out is None:
-        return run_all()[0]
-    with run_folder(out, record, owned=VALIDATION_FILES, resumable=False, force=force):
-        check_free_space(out, disk, what="the recordings")
-        report, tracks = run_all()
-        write(out, report, tracks)
-    return report
+        def finish(i: int) -> None:
+            plan = plans[i]
+            tracks = {f"{w}_{r['index']}": t
+                      for r in runs[i] for w, t in r.pop("tracks", {}).items()}  # fmt: skip
+            reports[i] = plan.head | {
+                "runs": runs[i], "summary": plan.summary(runs[i], time.perf_counter() - t0)
+            }
+            if plan.out is not None:
+                plan.write(plan.out, reports[i], tracks)
+
+        for i, plan in enumerate(plans):
+            if not plan.jobs:
+                finish(i)
+        with contextlib.closing(ex.imap(_apply, items)) as outcomes:  # stops workers on Ctrl-C
+            for n, outcome in outcomes:
+                i, k = owner[n]
+                if isinstance(outcome, Failed):
+                    rec = _failed_record(plans[i].jobs[k], outcome.message)
+                else:
+                    rec = outcome.value
+                runs[i][k] = rec
+                if on_run is not None:
+                    on_run(rec)
+                left[i] -= 1
+                if left[i] == 0:
+                    finish(i)
+    return reports
 
 
 @dataclass(frozen=True)
@@ -527,7 +558,7 @@ LONE = Kind(
 """One robot at each start."""
 
 
-def validate(
+def plan_validation(
     bits: np.ndarray,
     starts: np.ndarray,
     *,
@@ -538,17 +569,16 @@ def validate(
     out_dir: str | Path | None = None,
     rrd: bool = False,
     workers: int | None = None,
-    executor: Executor | None = None,
     max_steps: int | None = None,
     seed: int = 0,
     model: ModelFile = None,
-    on_run: Callable[[dict[str, Any]], None] | None = None,
     meta: dict[str, Any] | None = None,
     force: bool = False,
     powers: Any = None,
     kind: Kind = LONE,
-) -> dict[str, Any]:
-    """Run ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the table and physics.
+) -> Plan:
+    """Check a validation of ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the
+    table and physics, and make its jobs (``validate`` runs it; ``execute`` runs plans).
 
     ``bits`` may also be an (8, 30) navigation section: it then runs in navigation mode
     (SPEC §6: from gene 0 until it docks, ``world.navigation_steps`` steps by default), and
@@ -557,17 +587,15 @@ def validate(
 
     ``table`` is a (16, 3) array or a ``GaitTable``; ``physics`` a ``PhysicsSettings`` (None =
     default; with ``servo_noise_rad`` > 0, run k draws its noise from
-    ``default_rng((seed, k))``). ``executor`` (``infra.executors.make_executor``) runs the
-    starts; without one, ``workers`` 1 runs them here and otherwise a pool of ``workers``
-    processes (None = one per core); records do not depend on where the runs ran. ``model``:
-    the robot in physics (None = the shipped ServoBot, else a model file such as a
-    ``servobot variant``; check the table against it with ``load_checked_table``).
-    ``on_run(record)`` is called as each run finishes (progress). ``kind``: what runs at each
-    start (``servobot.validation.colony.validate_colony`` passes a colony's; then ``starts``
-    is (N, R, 3), ``max_steps`` bounds each robot's own steps and ``powers`` is refused).
-    Returns the report (and writes it into ``out_dir`` when given). Raises
-    ``infra.errors.InputError`` subclasses (``ValidationError``, ``BoundsError``,
-    ``RunDirError``, ...) on bad input, before any run.
+    ``default_rng((seed, k))``). ``workers``: the pool size the memory check counts with
+    (None: the plan goes to an executor). ``model``: the robot in physics (None = the shipped
+    ServoBot, else a model file such as a ``servobot variant``; check the table against it
+    with ``load_checked_table``). ``kind``: what runs at each start
+    (``servobot.validation.colony.validate_colony`` passes a colony's; then ``starts`` is
+    (N, R, 3), ``max_steps`` bounds each robot's own steps and ``powers`` is refused). The
+    report is written into ``out_dir`` when given. Raises ``infra.errors.InputError``
+    subclasses (``ValidationError``, ``BoundsError``, ``RunDirError``, ...) on bad input,
+    before any run (the run folder is taken by ``execute``).
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
@@ -581,7 +609,7 @@ def validate(
     volts = check_powers(powers, len(poses), world)
     steps, out, rrd = check_run_options(max_steps, model, world, out_dir, rrd, mode)
     robots = 1 if colony is None else colony.robots
-    disk = check_sizes(len(poses), steps * robots, None if executor else workers, rrd, seed)
+    disk = check_sizes(len(poses), steps * robots, workers, rrd, seed)
     settings = validation_settings(world, arena, physics, steps, seed, model, mode)
     if colony is not None:
         settings["ColonySettings"] = jsonable(colony)
@@ -602,12 +630,35 @@ def validate(
               "starts": jsonable(poses), "settings": settings, "rrd": rrd}  # fmt: skip
     if powers is not None:
         record["powers"] = volts
-    return execute(
-        jobs, kind.work, ex=executor or make_executor(None, workers), head=head,
+    return Plan(
+        jobs, kind.work, head=head,
         summary=lambda runs, wall: kind.summarise(runs, world, wall),
         write=lambda path, report, tracks: kind.write(path, report, tracks, world),
-        out=out, record=record, disk=disk, force=force, on_run=on_run,
+        out=out, record=record, disk=disk, force=force,
     )  # fmt: skip
+
+
+def validate(
+    bits: np.ndarray,
+    starts: np.ndarray,
+    *,
+    table: Any,
+    workers: int | None = None,
+    executor: Executor | None = None,
+    on_run: Callable[[dict[str, Any]], None] | None = None,
+    **options: Any,
+) -> dict[str, Any]:
+    """Run ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the table and physics
+    and return the report (``plan_validation`` says what the options are).
+
+    ``executor`` (``infra.executors.make_executor``) runs the starts; without one, ``workers``
+    1 runs them here and otherwise a pool of ``workers`` processes (None = one per core);
+    records do not depend on where the runs ran. ``on_run(record)`` is called as each run
+    finishes (progress).
+    """
+    plan = plan_validation(bits, starts, table=table, workers=None if executor else workers,
+                           **options)  # fmt: skip
+    return execute([plan], executor or make_executor(None, workers), on_run)[0]
 
 
 def check_powers(powers: Any, n: int, world: WorldSettings) -> list[float | None]:
@@ -659,7 +710,9 @@ __all__ = [
     "check_run_options",
     "check_sizes",
     "check_start",
+    "Plan",
     "execute",
+    "plan_validation",
     "jsonable",
     "load_checked_table",
     "mode_of",
