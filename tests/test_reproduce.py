@@ -24,7 +24,6 @@ from servobot.reproduce.run import (
     reproduce,
     stage_key,
 )
-from servobot.reproduce.settings import check_settings
 from servobot.robustness.worlds import BUILT_IN
 
 TINY = ReproduceSettings(
@@ -239,8 +238,7 @@ def test_settings_keys_and_presets() -> None:
     assert (full.robustness_starts, quick.robustness_starts) == (2, 1)
     assert (full.robustness_finalists, quick.robustness_finalists) == (5, 1)
     assert "robustness_finalists" in stage_key(full, "robustness")
-    with pytest.raises(ReproduceError, match="robustness_finalists"):
-        check_settings(dataclasses.replace(full, robustness_finalists=6))
+    assert dataclasses.replace(full, coverage_populations=2).matrix_finalists() == 2
     assert quick.validate_max_steps == full.robustness(Path("d")).steps == 600
 
 

@@ -80,7 +80,7 @@ def _run(args: argparse.Namespace) -> int:
     runs = RunBar(  # shown at its first run, not before the checks
         "physics runs", not args.no_progress,
         total=settings.coverage_populations * settings.validate_starts
-        + settings.robustness_finalists * matrix + 2 * settings.validate_navigation_starts,
+        + settings.matrix_finalists() * matrix + 2 * settings.validate_navigation_starts,
     )  # fmt: skip
     try:
         res = reproduce(

@@ -300,7 +300,7 @@ def _robustness_section(out: Path, s: ReproduceSettings) -> list[str]:
 
 def finalists_phrase(s: ReproduceSettings) -> str:
     """Which finalists the matrix ran: all of them, or the best n by Figure 9."""
-    n = s.robustness_finalists
+    n = s.matrix_finalists()
     if n == s.coverage_populations:
         return f"{n} finalists" if n > 1 else "finalist"
     return f"{n} best finalists by Figure 9" if n > 1 else "best finalist by Figure 9"

@@ -77,8 +77,9 @@ from servobot.validation.lone import (
     VALIDATION_FILES,
     ValidationError,
     clear_navigation_starts,
+    execute,
+    plan_validation,
     sample_poses,
-    validate,
     validation_need,
 )
 
@@ -156,7 +157,7 @@ def reproduce_need(s: ReproduceSettings, world: WorldSettings, workers: int | No
         n = s.validate_navigation_starts
         need += validation_need(n, world.navigation_steps, workers, False)[0]
     if s.model is None:
-        for _ in range(s.robustness_finalists * len(ROBUSTNESS_WORLDS)):
+        for _ in range(s.matrix_finalists() * len(ROBUSTNESS_WORLDS)):
             need += validation_need(s.robustness_starts, s.validate_max_steps, workers, False)[0]
     return need
 
@@ -256,8 +257,10 @@ class _Pipeline:
         reports = [folder / f"pop{k}" / "report.json" for k in range(self.s.coverage_populations)]
 
         def body() -> dict[str, Any]:
-            res = self._validate_finalists(table)
-            nav = self._validate_navigation(table)
+            finalists, sections = self._finalist_validations(table), self._navigation_validations()
+            done = self._validate_all(table, finalists | sections)
+            res = {name: done[name] for name in finalists}
+            nav = {name: done[name] for name in sections}
             failed = [f"finalist {k}" for k, r in res.items() if "error" in r]
             failed += [f"the navigation section ({k})" for k, r in nav.items() if "error" in r]
             if failed:
@@ -273,7 +276,7 @@ class _Pipeline:
         ``DIR/robustness``; the matrix resumes cell by cell. Not run for another robot
         (``model``): the matrix's worlds are variants of the shipped one."""
         folder = self.out / "robustness"
-        n = self.s.robustness_finalists
+        n = self.s.matrix_finalists()
 
         def body() -> dict[str, Any]:
             if self.s.model is not None:
@@ -293,65 +296,68 @@ class _Pipeline:
         outputs = [] if self.s.model is not None else [folder / "robustness.json"]
         self.stage("robustness", body, outputs)
 
-    def _validate_finalists(self, table: GaitTable) -> dict[str, Any]:
-        """Physics validation of each coverage finalist; resumable finalist by finalist."""
+    def _finalist_validations(self, table: GaitTable) -> dict[str, Any]:
+        """The physics validation of each coverage finalist, for ``_validate_all``."""
         s, folder = self.s, self.out / "validation"
         starts = validation_starts(s, self.world)
         atomic_write_json(folder / "starts.json", {"starts": starts.tolist(), "seed": s.seed})
         return {
-            str(k): self._validate_into(
+            str(k): (
                 folder / f"pop{k}",
                 f"finalist {k}",
                 read_chromosome(self.out / "coverage" / f"best_pop{k}.txt"),
                 starts,
-                table,
-                rrd=True,
-                max_steps=s.validate_max_steps,
-                meta={"finalist": k, "source": f"coverage/best_pop{k}.txt"},
+                {"rrd": True, "max_steps": s.validate_max_steps,
+                 "meta": {"finalist": k, "source": f"coverage/best_pop{k}.txt"}},
             )  # fmt: skip
             for k in range(s.coverage_populations)
         }
 
-    def _validate_navigation(self, table: GaitTable) -> dict[str, Any]:
+    def _navigation_validations(self) -> dict[str, Any]:
         """Physics validation of the navigation section alone (navigation mode): from fresh
-        navigation starts and from hand-off poses of the coverage finalists; resumable."""
+        navigation starts and from hand-off poses of the coverage finalists
+        (``_validate_all``)."""
         section = read_chromosome(self.out / "navigation" / "best.txt")
         fresh, handoffs, powers = navigation_validation_starts(self.s, self.world, self.out)
-        results: dict[str, Any] = {}
-        for name, starts, volts in zip(NAVIGATION_VALIDATIONS, (fresh, handoffs), (None, powers),
-                                       strict=True):  # fmt: skip
-            if not len(starts):
-                results[name] = {"skipped": True, "wall_s": 0.0, "note": "no poses"}
-                continue
-            results[name] = self._validate_into(
+        return {
+            name: (
                 self.out / "validation" / name, f"the navigation section ({name})", section,
-                starts, table, powers=volts,
-                meta={"source": "navigation/best.txt", "starts": name},
+                starts, {"powers": volts, "meta": {"source": "navigation/best.txt",
+                                                   "starts": name}},
             )  # fmt: skip
-        return results
+            for name, starts, volts in zip(NAVIGATION_VALIDATIONS, (fresh, handoffs),
+                                           (None, powers), strict=True)  # fmt: skip
+        }
 
-    def _validate_into(
-        self, sub: Path, what: str, bits: np.ndarray, starts: np.ndarray, table: GaitTable,
-        **kwargs: Any,
-    ) -> dict[str, Any]:  # fmt: skip
-        """One validation into ``sub`` (skipped if it finished with these settings); a bad
-        input is this validation's ``error`` and must not stop the others."""
+    def _validate_all(self, table: GaitTable, todo: dict[str, Any]) -> dict[str, Any]:
+        """Each validation ``name: (folder, what, bits, starts, options)``, every one's runs as
+        one batch on the executor. A validation that finished with these settings is skipped;
+        one without starts is noted; a bad input is that validation's ``error`` and does not
+        stop the others."""
         key = stage_key(self.s, "validation")
-        done = read_done(sub, key)
-        if done is not None and (sub / "report.json").exists():
-            return {"skipped": True, "wall_s": done["wall_s"]}
-        t0 = time.perf_counter()
-        try:
-            validate(
-                bits, starts, table=table, world=self.world, out_dir=sub,
-                executor=self.executor, model=self.s.model, on_run=self.on_run, **kwargs,
-            )  # fmt: skip
-        except ValidationError as exc:
-            self.log(f"validation of {what} failed: {exc}")
-            return {"error": str(exc)}
-        wall = time.perf_counter() - t0
-        write_done(sub, key, wall)
-        return {"skipped": False, "wall_s": round(wall, 3)}
+        results: dict[str, Any] = {}
+        plans: dict[str, tuple[Path, Any]] = {}
+        for name, (sub, what, bits, starts, options) in todo.items():
+            done = read_done(sub, key)
+            if done is not None and (sub / "report.json").exists():
+                results[name] = {"skipped": True, "wall_s": done["wall_s"]}
+            elif not len(starts):
+                results[name] = {"skipped": True, "wall_s": 0.0, "note": "no poses"}
+            else:
+                try:
+                    plans[name] = (sub, plan_validation(
+                        bits, starts, table=table, world=self.world, out_dir=sub,
+                        model=self.s.model, **options,
+                    ))  # fmt: skip
+                except ValidationError as exc:
+                    self.log(f"validation of {what} failed: {exc}")
+                    results[name] = {"error": str(exc)}
+        reports = execute([plan for _, plan in plans.values()], self.executor, self.on_run)
+        for (name, (sub, _)), report in zip(plans.items(), reports, strict=True):
+            wall = report["summary"]["wall_s"]
+            write_done(sub, key, wall)
+            results[name] = {"skipped": False, "wall_s": round(wall, 3)}
+        return {name: results[name] for name in todo}
 
 
 def _envelope_info(summary: dict[str, Any], figure: str) -> dict[str, Any]:
