@@ -56,6 +56,24 @@ def add_model_option(
     p.add_argument("--model", type=type, default=None, metavar="FILE", help=help)
 
 
+def check_model_option(model: Any) -> Any:
+    """Read, compile and check the model of ``--model`` (``servo_mj.robot.model.check_model``,
+    the one gate of every model file): a ``ModelFileError`` naming ``--model`` and the file,
+    exit 2, before any work. Returns ``model`` unchanged (None: the shipped ServoBot)."""
+    if model is None:
+        return None
+    from servo_mj.robot.model import check_model  # MuJoCo only for commands that take a model
+
+    check_model(model, option="--model")
+    return model
+
+
+def check_shared_options(args: argparse.Namespace) -> None:
+    """Before any work of a command (``servobot.cli.runner.run_main`` calls it): its
+    ``--model`` is a usable ServoBot model. ``InputError`` naming the option."""
+    check_model_option(getattr(args, "model", None))
+
+
 def executor_from_args(args: argparse.Namespace) -> Executor:
     """The executor of ``--executor`` and ``--workers`` (already checked); a Ray one joins
     or starts Ray now, so that a cluster that cannot be reached stops the command before any

@@ -29,7 +29,7 @@ from pathlib import Path
 import mujoco
 
 from infra.errors import InputError
-from servo_mj.robot.model import ModelFileError, model_sha256
+from servo_mj.robot.model import ModelFileError, check_model, model_sha256
 from servo_mj.robot.variant import (
     VariantError,
     VariantParams,
@@ -144,6 +144,7 @@ def world_from_file(path: Path) -> PhysicsWorldSpec:
     that MuJoCo compiles it and that the robot stands and walks one cycle of every gait;
     ``WorldError`` naming the file otherwise."""
     try:
+        check_model(path)  # the one gate of model files: read rules, includes, a ServoBot
         params = read_variant(path)
         check_walks(mujoco.MjModel.from_xml_path(str(path)))
     except (InputError, ValueError, RuntimeError) as exc:
