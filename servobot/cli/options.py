@@ -17,6 +17,7 @@ from infra.executors import (
     RayExecutor,
     check_spec,
     make_executor,
+    parse_spec,
 )
 
 METAVAR = "|".join(EXECUTOR_SPECS)
@@ -70,8 +71,12 @@ def check_model_option(model: Any) -> Any:
 
 def check_shared_options(args: argparse.Namespace) -> None:
     """Before any work of a command (``servobot.cli.runner.run_main`` calls it): its
-    ``--model`` is a usable ServoBot model. ``InputError`` naming the option."""
+    ``--model`` is a usable ServoBot model, and a Ray cluster its ``--executor`` names answers
+    (``ExecutorSpec.reach``, a few seconds at most). ``InputError`` naming the option."""
     check_model_option(getattr(args, "model", None))
+    spec = getattr(args, "executor", None)
+    if isinstance(spec, str):
+        parse_spec(spec).reach()
 
 
 def executor_from_args(args: argparse.Namespace) -> Executor:
