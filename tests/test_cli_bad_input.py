@@ -231,8 +231,8 @@ CASES = {
         (["--envelope", "{binary}"], "binary.bin"),
     ],
     "variant": [
-        (["--torso-mass", "-1", "--out", "{dir}/v.xml"], "torso_mass_kg must be > 0"),
-        (["--leg-length", "nan", "--out", "{dir}/v.xml"], "leg_length_m must be a finite"),
+        (["--torso-mass", "-1", "--out", "{dir}/v.xml"], "--torso-mass must be a finite number"),
+        (["--leg-length", "nan", "--out", "{dir}/v.xml"], "--leg-length must be a finite number"),
         (["--out", "{dir}"], "--out"),
         (["--show", "{dir}"], "a_folder: is a folder, not a model file"),
         (["--show", "{binary}"], "binary.bin: holds binary data"),
