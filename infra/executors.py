@@ -28,11 +28,15 @@ batch at once, with no traceback from any worker.
 
 from __future__ import annotations
 
+import ipaddress
 import logging
 import multiprocessing as mp
 import os
+import re
 import signal
+import socket
 import threading
+import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -258,6 +262,8 @@ class RayExecutor:
             ) from exc
         if ray.is_initialized():
             return ray
+        if self.address is not None:  # a cluster that does not answer: stop now, not retry
+            parse_spec(f"ray:{self.address}").reach()
         kwargs: dict[str, Any] = {"logging_level": logging.WARNING}
         if self.address is None:  # "local": a new instance, even if a cluster runs here
             kwargs |= {"address": "local", "num_cpus": self.workers, "include_dashboard": False}
@@ -267,7 +273,8 @@ class RayExecutor:
             ray.init(**kwargs)
         except ConnectionError as exc:
             raise ExecutorError(
-                f"cannot join the Ray cluster at {self.address}: {exc}. Is 'ray start --head' "
+                f"--executor ray:{self.address}: cannot join the Ray cluster at {self.address}: "
+                f"{exc}. Is 'ray start --head' "
                 "running there, and do this process and the cluster agree on RAY_AUTH_MODE "
                 "(docs/executors.md)?"
             ) from exc
@@ -297,15 +304,120 @@ class RayExecutor:
                 ray.cancel(ref, force=True)
 
 
-def check_spec(spec: str) -> str:
-    """``spec`` if it names an executor (``EXECUTOR_SPECS``), else ``ValueError``."""
-    if spec in ("serial", "process", "ray") or (
-        isinstance(spec, str) and spec.startswith("ray:") and len(spec) > 4
-    ):
+RAY_PROBE_TIMEOUT_S = 5.0
+"""How long ``ExecutorSpec.reach`` waits for a Ray cluster's port to answer, s."""
+_HOSTNAME = re.compile(r"[A-Za-z0-9_]([A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?")
+_FORMS = "serial, process, ray or ray:ADDRESS (a Ray cluster)"
+_ADDRESS_FORMS = "ADDRESS must be auto, HOST:PORT or ray://HOST:PORT (PORT 1-65535)"
+
+
+class ExecutorSpecError(ExecutorError, ValueError):
+    """An ``--executor`` value that names no executor, or a Ray address of the wrong form."""
+
+
+@dataclass(frozen=True)
+class ExecutorSpec:
+    """A checked executor spec (``parse_spec``): ``kind`` serial, process or ray; for a Ray
+    cluster, ``address`` as ``ray.init(address=...)`` takes it and, unless it is ``auto``,
+    its ``host`` and ``port`` (probed by ``reach`` before Ray is asked to join)."""
+
+    kind: str
+    address: str | None = None
+    host: str | None = None
+    port: int | None = None
+
+    def __str__(self) -> str:
+        return self.kind if self.address is None else f"ray:{self.address}"
+
+    def reach(self, timeout_s: float = RAY_PROBE_TIMEOUT_S) -> None:
+        """For a Ray cluster at HOST:PORT, check within ``timeout_s`` seconds that a Ray server
+        answers there, so that an unreachable cluster stops a command at once instead of Ray
+        retrying for long: connect to the port and say hello as a gRPC client (Ray's GCS and
+        its client server speak gRPC: an HTTP/2 server answers the client preface with its
+        SETTINGS frame). ``ExecutorError`` naming ``--executor`` otherwise. Nothing to do for
+        the other specs (``ray:auto`` fails fast in Ray itself); with ``RAY_USE_TLS`` set only
+        the connection is checked."""
+        if self.host is None or self.port is None:
+            return
+        where = f"{self.host}:{self.port}"
+        deadline = time.monotonic() + timeout_s
+        try:
+            with socket.create_connection((self.host, self.port), timeout=timeout_s) as sock:
+                if os.environ.get("RAY_USE_TLS", "0").lower() not in ("", "0", "false"):
+                    return
+                sock.settimeout(max(deadline - time.monotonic(), 0.001))
+                sock.sendall(_H2_HELLO)
+                head = b""
+                while len(head) < 9:
+                    sock.settimeout(max(deadline - time.monotonic(), 0.001))
+                    chunk = sock.recv(9 - len(head))
+                    if not chunk:
+                        break
+                    head += chunk
+            if len(head) == 9 and head[3] == _H2_SETTINGS:
+                return
+            why = "the port answers, but not as a Ray (gRPC) server"
+        except TimeoutError:
+            why = f"timed out after {timeout_s:g} s"
+        except socket.gaierror as exc:
+            why = f"cannot resolve host {self.host!r}: {exc.strerror or exc}"
+        except OSError as exc:
+            why = exc.strerror or str(exc) or "unreachable"
+            why = why[0].lower() + why[1:]
+        raise ExecutorError(
+            f"--executor {self}: no Ray cluster answers at {where} ({why}); start one with "
+            "'ray start --head' there, or pick serial, process or ray (docs/executors.md)"
+        )
+
+
+_H2_HELLO = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+"""An HTTP/2 client's connection preface followed by an empty SETTINGS frame."""
+_H2_SETTINGS = 4
+"""HTTP/2 frame type of SETTINGS: a server's first frame (RFC 9113 §3.4)."""
+
+
+def _host_port(text: str, spec: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not host:
+        raise ExecutorSpecError(f"{spec}: {_ADDRESS_FORMS}")
+    if host.startswith("[") and host.endswith("]"):
+        try:
+            ipaddress.IPv6Address(host[1:-1])
+        except ValueError:
+            raise ExecutorSpecError(f"{spec}: {host} is not an IPv6 address; "
+                                    f"{_ADDRESS_FORMS}") from None  # fmt: skip
+        host = host[1:-1]
+    elif len(host) > 253 or not all(_HOSTNAME.fullmatch(label) for label in host.split(".")):
+        raise ExecutorSpecError(f"{spec}: {host!r} is not a host name or IP "
+                                f"address; {_ADDRESS_FORMS}")  # fmt: skip
+    if not (port.isascii() and port.isdigit()) or not 1 <= int(port) <= 65535:
+        raise ExecutorSpecError(f"{spec}: port {port!r} is not a number 1-65535; "
+                                f"{_ADDRESS_FORMS}")  # fmt: skip
+    return host, int(port)
+
+
+def parse_spec(spec: Any) -> ExecutorSpec:
+    """The ``ExecutorSpec`` of ``spec`` (``EXECUTOR_SPECS``): ``serial``, ``process``, ``ray``,
+    or ``ray:ADDRESS`` where ADDRESS is ``auto``, ``HOST:PORT`` or ``ray://HOST:PORT`` (HOST a
+    host name, an IPv4 address or a bracketed IPv6 one; PORT 1-65535). ``ExecutorSpecError``
+    (a ``ValueError`` and an ``InputError``) naming ``--executor`` otherwise."""
+    if isinstance(spec, ExecutorSpec):
         return spec
-    raise ValueError(
-        f"executor must be serial, process, ray or ray:ADDRESS (a Ray cluster), got {spec!r}"
-    )
+    if spec in ("serial", "process", "ray"):
+        return ExecutorSpec(spec)
+    if not isinstance(spec, str) or not spec.startswith("ray:") or len(spec) == 4:
+        raise ExecutorSpecError(f"executor must be {_FORMS}, got {spec!r}")
+    address = spec[4:]
+    if address == "auto":
+        return ExecutorSpec("ray", address)
+    rest = address.removeprefix("ray://")
+    host, port = _host_port(rest, spec)
+    return ExecutorSpec("ray", address, host, port)
+
+
+def check_spec(spec: str) -> str:
+    """``spec`` if it names an executor (``parse_spec``), else ``ExecutorSpecError``."""
+    return str(parse_spec(spec))
 
 
 def make_executor(spec: str | None = "process", workers: int | None = None) -> Executor:
@@ -317,12 +429,12 @@ def make_executor(spec: str | None = "process", workers: int | None = None) -> E
         raise ValueError(f"workers must be at least 1, got {workers}")
     if spec is None:
         spec = "serial" if workers == 1 else "process"
-    spec = check_spec(spec)
-    if spec == "serial":
+    parsed = parse_spec(spec)
+    if parsed.kind == "serial":
         return SerialExecutor()
-    if spec == "process":
+    if parsed.kind == "process":
         return ProcessExecutor(workers)
-    return RayExecutor(workers, address=spec[4:] or None)
+    return RayExecutor(workers, address=parsed.address)
 
 
 def run_in_order(
@@ -353,6 +465,8 @@ __all__ = [
     "BatchError",
     "Executor",
     "ExecutorError",
+    "ExecutorSpec",
+    "ExecutorSpecError",
     "Failed",
     "Ok",
     "Outcome",
@@ -361,6 +475,7 @@ __all__ = [
     "SerialExecutor",
     "check_spec",
     "make_executor",
+    "parse_spec",
     "process_pool",
     "run_in_order",
     "spawning",

@@ -131,7 +131,7 @@ CASES = {
         (["--navigation", "{chrom8}", "--seed", "-1"], "--seed must be ≥ 0"),
         (["--navigation", "{chrom8}", "--workers", "1000000"], "--workers must be an integer"),
         (["--navigation", "{chrom8}", "--executor", "cloud"], "executor must be serial"),
-        (["--navigation", "{chrom8}", "--model", "{dir}"], "--model"),
+        (["--navigation", "{chrom8}", "--model", "{dir}"], "--model {dir}: is a folder, not a"),
         (["--navigation", "{chrom8}", "--baseline", "{dir}"], "no such anytime summary"),
         (["--navigation", "{chrom8}", "--baseline", "{bias_run}"], "must be a --method none run"),
         (["--navigation", "{chrom8}", "--out", "{chrom16}"], "is a file, not a folder"),
@@ -226,13 +226,13 @@ CASES = {
         (["--validate-starts", "1000000000"], "the reproduction's budgets need"),
         (["--out", "{chrom16}"], "is a file, not a folder"),
         (["--out", "/proc/servobot-x"], "cannot write there"),
-        (["--model", "{dir}"], "a_folder: no such file"),
+        (["--model", "{dir}"], "--model {dir}: is a folder, not a robot model file"),
         (["--envelope", "{list_json}"], "list.json: an envelope is a JSON object"),
         (["--envelope", "{binary}"], "binary.bin"),
     ],
     "variant": [
-        (["--torso-mass", "-1", "--out", "{dir}/v.xml"], "torso_mass_kg must be > 0"),
-        (["--leg-length", "nan", "--out", "{dir}/v.xml"], "leg_length_m must be a finite"),
+        (["--torso-mass", "-1", "--out", "{dir}/v.xml"], "--torso-mass must be a finite number"),
+        (["--leg-length", "nan", "--out", "{dir}/v.xml"], "--leg-length must be a finite number"),
         (["--out", "{dir}"], "--out"),
         (["--show", "{dir}"], "a_folder: is a folder, not a model file"),
         (["--show", "{binary}"], "binary.bin: holds binary data"),
@@ -271,7 +271,7 @@ def _fill(command: str, argv: list[str], files: dict[str, Path], tmp: Path) -> l
 def test_bad_input_exits_2_naming_the_problem(command, argv, message, files, tmp_path, capsys):
     code, err = _run(_fill(command, argv, files, tmp_path), capsys)
     assert code == 2, err
-    assert message in err, err
+    assert message.format(**{k: str(v) for k, v in files.items()}) in err, err
     assert "Traceback" not in err
     assert not (tmp_path / "out").exists() or not any(
         p.name != ".lock" for p in (tmp_path / "out").rglob("*") if p.is_file()

@@ -1,5 +1,6 @@
 """Fuzzing every parser of user files with hypothesis: chromosome text, gait-table JSON, gait
-parameters, poses files, settings files (run-folder records, stage markers) and checkpoints.
+parameters, poses files, settings files (run-folder records, stage markers), checkpoints, robot
+model files (MJCF) and executor specs.
 Whatever the bytes, a parser returns a valid result or raises its named error (an
 ``InputError`` whose message names the file) — never anything else."""
 
@@ -22,9 +23,12 @@ from evolve.settings import GASettings, WorldSettings
 from evolve.stages import navigation_stage
 from evolve.table import MAX_STEP_CM, MAX_TURN_DEG, PAPER_TABLE, load_table, table_to_json
 from infra.errors import InputError
+from infra.executors import ExecutorSpec, ExecutorSpecError, parse_spec
 from infra.io import read_json
 from infra.rundir import RECORD_FILE, RunDirError, run_folder
 from servo_mj.robot.gaits import MAX_TARGET_RAD, GaitLibrary
+from servo_mj.robot.model import CheckedModel, check_model
+from servo_mj.robot.variant import VariantParams, variant_xml
 from servobot.reproduce.run import DONE, read_done
 
 FUZZ = settings(
@@ -308,3 +312,75 @@ def test_checkpoint_files_of_any_bytes_or_truncated(scratch, data, cut):
     with pytest.raises(StageError) as info:
         _resume(folder)
     _named(info.value, ckpt)
+
+
+# --------------------------------------------------------------------------- robot models
+
+MJCF = variant_xml(VariantParams(torso_mass_kg=0.9))
+"""A valid one-file ServoBot model (a variant); the fuzzed ones mutate its text."""
+MJCF_TOKENS = st.sampled_from(
+    ["<", ">", "/>", "</body>", "<body>", '"', "=", "&amp;", "&x;", "<!--", "-->", "nan", "-1",
+     "1e400", "<include file=\"/etc/passwd\"/>", '<include file="../x.xml"/>',
+     '<include file="missing.xml"/>', "<!DOCTYPE m [<!ENTITY x \"y\">]>", "\x00", "\ufeff",
+     "<actuator/>", '<position joint="LF_thrust"/>', "<html>", "\u00e9"]
+)  # fmt: skip
+
+
+def _mutate(text: str, where: float, cut: int, insert: str) -> str:
+    i = int(where * len(text))
+    return text[:i] + insert + text[i + cut :]
+
+
+model_texts = st.one_of(
+    st.builds(_mutate, st.just(MJCF), st.floats(0.0, 1.0), st.integers(0, 200),
+              st.lists(MJCF_TOKENS | st.text(max_size=6), max_size=3).map("".join)),
+    st.builds(  # an attribute value replaced
+        lambda n, v: MJCF.replace('="', f'="{v} ', 1 + n).replace(f'="{v} ', '="', n),
+        st.integers(0, 400), st.sampled_from(["nan", "-1", "1e400", "", "x", "0 0", "1e-300"]),
+    ),
+)  # fmt: skip
+
+
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])  # fmt: skip
+@given(data=model_texts.map(lambda t: t.encode("utf-8", "surrogatepass")) | st.binary(max_size=300))
+def test_model_files_load_or_name_the_file(scratch, data):
+    """Any mutated MJCF text or bytes: a checked ServoBot model or an ``InputError`` naming
+    the file (never MuJoCo's own ValueError, a parser's error or a crash)."""
+    path = scratch / "robot.xml"
+    path.write_bytes(data)
+    try:
+        checked = check_model(path, option="--model")
+    except Exception as exc:  # noqa: BLE001
+        _named(exc, path)
+        return
+    assert isinstance(checked, CheckedModel) and len(checked.sha256) == 64
+
+
+# --------------------------------------------------------------------------- executor specs
+
+hosts = st.from_regex(r"[a-z0-9]([a-z0-9-]{0,10}[a-z0-9])?(\.[a-z0-9]{1,5}){0,2}", fullmatch=True)
+specs = st.one_of(
+    st.text(max_size=30),
+    st.text(max_size=30).map("ray:".__add__),
+    st.builds(lambda h, p, c: f"ray:{'ray://' if c else ''}{h}:{p}", hosts,
+              st.integers(-5, 70000) | st.text(max_size=5), st.booleans()),
+    st.sampled_from(["serial", "process", "ray", "ray:auto", "ray:[::1]:6379", "ray:[::1]"]),
+)  # fmt: skip
+
+
+@FUZZ
+@given(spec=specs)
+def test_executor_specs_parse_or_name_the_problem(spec):
+    """Any text: a checked spec that prints back as itself, or ``ExecutorSpecError`` (an
+    ``InputError`` and a ``ValueError``) naming it."""
+    try:
+        parsed = parse_spec(spec)
+    except ExecutorSpecError as exc:
+        assert isinstance(exc, InputError) and isinstance(exc, ValueError)
+        assert repr(spec) in str(exc) or spec in str(exc), str(exc)
+        return
+    assert isinstance(parsed, ExecutorSpec) and str(parsed) == spec
+    assert parse_spec(str(parsed)) == parsed
+    if parsed.port is not None:
+        assert 1 <= parsed.port <= 65535 and parsed.host

@@ -156,7 +156,7 @@ def test_a_variant_file_is_a_world_named_by_its_stem(tmp_path):
         (["{dir}/missing.txt"], "missing.txt: no such chromosome file"),
         (["{c16}", "--starts", "0"], "--starts must be an integer ≥ 1, got 0"),
         (["{c16}", "--steps", "0"], "--steps must be an integer ≥ 1, got 0"),
-        (["{c16}", "--worlds", "{c16}"], "c16.txt: MuJoCo cannot compile it"),
+        (["{c16}", "--worlds", "{c16}"], "c16.txt: not well-formed XML"),
         (["{c7}"], "expected 8 or 16 genes, found 7"),
     ],
 )

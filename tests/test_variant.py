@@ -128,7 +128,7 @@ def test_variant_cli_writes_and_rejects(tmp_path: Path, capsys) -> None:
     assert servobot(["variant", "--leg-length", "0.08", "--out", str(out)]) == 0
     assert read_variant(out) == VariantParams(leg_length_m=0.08)
     assert servobot(["variant", "--torso-mass", "0", "--out", str(tmp_path / "x.xml")]) == 2
-    assert "torso_mass_kg must be > 0" in capsys.readouterr().err
+    assert "--torso-mass must be a finite number > 0, got 0" in capsys.readouterr().err
 
 
 def test_a_variant_walks_in_the_colony_arena(files) -> None:

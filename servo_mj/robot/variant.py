@@ -11,7 +11,8 @@ arena attaches its robot (``servo_mj.world.arena.robot_spec``).
 What each parameter changes (units and defaults: ``VariantParams``, ``models/servobot/README.md``):
 
 - ``torso_mass_kg``: the torso's inertial mass; its inertia scales by the same factor (the
-  capacitors and electronics lumped into the torso grow in mass, not in size).
+  capacitors and electronics lumped into the torso grow in mass, not in size), kept valid
+  by construction (``valid_inertia``: the shipped moments sit exactly on A + B = C).
 - ``leg_length_m``: the horizontal reach of a foot centre from its thrust axis (7 cm shipped).
   Everything below the lift joint scales uniformly by ``leg_length_m / 0.07``: femur, shank,
   foot position (so the stride per cycle grows and the robot stands taller: the torso's home
@@ -112,6 +113,20 @@ class VariantParams:
 FIELDS = tuple(f.name for f in dataclasses.fields(VariantParams))
 
 
+def valid_inertia(diag: np.ndarray) -> np.ndarray:
+    """``diag`` (principal moments) made to satisfy the triangle inequality MuJoCo requires
+    (A + B >= C for every ordering): a moment that exceeds the sum of the other two (by float
+    rounding after a scale: the shipped torso's 0.0009 + 0.0049 = 0.0058 sits exactly on it,
+    so 0.9 kg would fail) is set to that sum. A valid ``diag`` is returned unchanged, bit for
+    bit, so the shipped model's output does not move."""
+    d = np.asarray(diag, dtype=float).copy()
+    for i in range(3):
+        rest = d[(i + 1) % 3] + d[(i + 2) % 3]
+        if d[i] > rest:
+            d[i] = rest
+    return d
+
+
 def _scale_legs(root: mjcf.RootElement, scale: float) -> float:
     """Scale every leg below its lift joint by ``scale``; returns how much lower the feet
     reach (m), which the torso's home height gains."""
@@ -119,7 +134,7 @@ def _scale_legs(root: mjcf.RootElement, scale: float) -> float:
     for leg in C.LEGS:
         body = root.find("body", f"{leg}_leg")
         body.inertial.pos = np.asarray(body.inertial.pos) * scale
-        body.inertial.diaginertia = np.asarray(body.inertial.diaginertia) * scale**2
+        body.inertial.diaginertia = valid_inertia(np.asarray(body.inertial.diaginertia) * scale**2)
         for geom in body.find_all("geom"):
             if geom.fromto is not None:
                 geom.fromto = np.asarray(geom.fromto) * scale
@@ -137,7 +152,7 @@ def build_variant(params: VariantParams) -> mjcf.RootElement:
     torso = root.find("body", C.TORSO)
     mass_scale = params.torso_mass_kg / float(torso.inertial.mass)
     torso.inertial.mass = params.torso_mass_kg
-    torso.inertial.diaginertia = np.asarray(torso.inertial.diaginertia) * mass_scale
+    torso.inertial.diaginertia = valid_inertia(np.asarray(torso.inertial.diaginertia) * mass_scale)
     lower = _scale_legs(root, params.leg_length_m / SHIPPED_LEG_LENGTH_M)
     torso.pos = np.asarray(torso.pos) + (0.0, 0.0, lower)
     for key in root.keyframe.key:
@@ -212,38 +227,56 @@ def read_variant(path: str | Path) -> VariantParams | None:
     return variant_params(model)
 
 
-def check_walks(model: mujoco.MjModel) -> None:
-    """Place the robot, settle, and walk one cycle of every gait (noise-free); raises
-    ``servo_mj.robot.bot.PhysicsError`` (NaN, warning, runaway, flipped) or ``VariantError``
-    when the torso touches the floor (the legs do not carry it)."""
+def _carried(model: mujoco.MjModel, data: mujoco.MjData, when: str) -> None:
+    """``VariantError`` if the torso touches the floor (the legs do not carry it)."""
+    torso = model.geom(C.TORSO).id
+    geoms = zip(data.contact.geom1[: data.ncon], data.contact.geom2[: data.ncon], strict=True)
+    if any(torso in pair for pair in geoms):
+        raise VariantError(f"the torso touches the floor {when}: the legs do not carry it")
+
+
+def check_stands(model: mujoco.MjModel) -> ServoBot:
+    """Place the robot in its home posture and settle it (noise-free); returns the robot.
+    Raises ``servo_mj.robot.bot.PhysicsError`` (NaN, warning, runaway, flipped) or
+    ``VariantError`` when the torso touches the floor."""
     data = mujoco.MjData(model)
     bot = ServoBot(model, data, rng=np.random.default_rng(0))
-    torso = model.geom(C.TORSO).id
-
-    def carried(when: str) -> None:
-        geoms = zip(data.contact.geom1[: data.ncon], data.contact.geom2[: data.ncon], strict=True)
-        if any(torso in pair for pair in geoms):
-            raise VariantError(f"the torso touches the floor {when}: the legs do not carry it")
-
     bot.place(0.0, 0.0, 0.0)
-    carried("after settling")
+    _carried(model, data, "after settling")
+    return bot
+
+
+def check_walks(model: mujoco.MjModel) -> None:
+    """Stand the robot (``check_stands``) and walk one cycle of every gait (noise-free);
+    raises ``servo_mj.robot.bot.PhysicsError`` (NaN, warning, runaway, flipped) or
+    ``VariantError`` when the torso touches the floor (the legs do not carry it)."""
+    bot = check_stands(model)
     for g in range(N_GAITS):
         bot.run_gait(g)
-        carried(f"while walking gait {g}")
+        _carried(model, bot.data, f"while walking gait {g}")
 
 
-def write_variant(params: VariantParams, out: str | Path) -> Path:
-    """Build, compile and walk-check the variant, then write it to ``out`` atomically."""
+def checked_variant(params: VariantParams, label: str | None = None) -> str:
+    """The variant's MJCF text, once it compiled and its robot stood and walked one cycle of
+    every gait (``check_walks``); ``VariantError`` naming the variant as ``label`` (default:
+    its changed fields) otherwise."""
+    label = label or f"variant {params.changed()}"
     xml = variant_xml(params)
     try:
         model = mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:
-        raise VariantError(f"variant {params.changed()} does not compile: {exc}") from exc
+        raise VariantError(f"{label} does not compile: {exc}") from exc
     try:
         check_walks(model)
     except (RuntimeError, VariantError) as exc:
-        raise VariantError(f"variant {params.changed()} cannot stand and walk: {exc}") from exc
-    return atomic_write_text(out, xml)
+        raise VariantError(f"{label} cannot stand and walk: {exc}") from exc
+    return xml
+
+
+def write_variant(params: VariantParams, out: str | Path, label: str | None = None) -> Path:
+    """Build, compile and walk-check the variant (``checked_variant``), then write it to
+    ``out`` atomically."""
+    return atomic_write_text(out, checked_variant(params, label))
 
 
 def describe(params: VariantParams | None) -> dict[str, Any]:
@@ -258,9 +291,12 @@ __all__ = [
     "VariantError",
     "VariantParams",
     "build_variant",
+    "check_stands",
     "check_walks",
+    "checked_variant",
     "describe",
     "read_variant",
+    "valid_inertia",
     "variant_params",
     "variant_xml",
     "write_variant",

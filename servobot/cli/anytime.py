@@ -29,7 +29,7 @@ from evolve.anytime import METHODS, AnytimeSettings
 from evolve.settings import WorldSettings
 from infra.bounds import check_int
 from infra.io import check_output_dir
-from servobot.cli.evolve import CliError, ga_settings, load_navigation, run_evolution
+from servobot.cli.evolve import ga_settings, load_navigation, run_evolution
 from servobot.cli.options import (
     add_envelope_option,
     add_executor_option,
@@ -126,8 +126,6 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     settings = anytime_settings(args)
     if args.workers is not None:
         check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
-    if args.model is not None and not args.model.is_file():
-        raise CliError(f"--model {args.model}: no such file")
     navigation = load_navigation(args.navigation)
     table, warning = load_checked_table(args.table, args.model)
     if warning:

@@ -17,6 +17,7 @@ from infra.executors import (
     RayExecutor,
     check_spec,
     make_executor,
+    parse_spec,
 )
 
 METAVAR = "|".join(EXECUTOR_SPECS)
@@ -54,6 +55,28 @@ def add_model_option(
 ) -> None:
     """Add ``--model FILE`` (default None: the shipped ServoBot), read as ``type``."""
     p.add_argument("--model", type=type, default=None, metavar="FILE", help=help)
+
+
+def check_model_option(model: Any) -> Any:
+    """Read, compile and check the model of ``--model`` (``servo_mj.robot.model.check_model``,
+    the one gate of every model file): a ``ModelFileError`` naming ``--model`` and the file,
+    exit 2, before any work. Returns ``model`` unchanged (None: the shipped ServoBot)."""
+    if model is None:
+        return None
+    from servo_mj.robot.model import check_model  # MuJoCo only for commands that take a model
+
+    check_model(model, option="--model")
+    return model
+
+
+def check_shared_options(args: argparse.Namespace) -> None:
+    """Before any work of a command (``servobot.cli.runner.run_main`` calls it): its
+    ``--model`` is a usable ServoBot model, and a Ray cluster its ``--executor`` names answers
+    (``ExecutorSpec.reach``, a few seconds at most). ``InputError`` naming the option."""
+    check_model_option(getattr(args, "model", None))
+    spec = getattr(args, "executor", None)
+    if isinstance(spec, str):
+        parse_spec(spec).reach()
 
 
 def executor_from_args(args: argparse.Namespace) -> Executor:

@@ -117,7 +117,9 @@ def run_main(
     """A subcommand's ``main``: parse ``argv`` (None: ``sys.argv[1:]``) and ``run_command``
     ``body(args, command)``, ``command`` being the command line as typed. Interrupted, it says
     that ``kept(args)`` is kept and resumes with the command line less ``drop`` plus
-    ``extra``, and ``again`` in parentheses (e.g. "the calibration starts again")."""
+    ``extra``, and ``again`` in parentheses (e.g. "the calibration starts again"). The options
+    several commands share (``--model``, ``--executor``) are checked before ``body`` runs
+    (``servobot.cli.options.check_shared_options``)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     command = command_line(prog, argv)
@@ -126,7 +128,13 @@ def run_main(
         resume = command_line(prog, argv, *extra, drop=drop)
         return Interrupted(kept(args), resume if again is None else f"{resume} ({again})")
 
-    return run_command(prog, lambda: body(args, command), interrupted)
+    def checked_body() -> int | None:
+        from servobot.cli.options import check_shared_options
+
+        check_shared_options(args)  # --model, --executor: before any work
+        return body(args, command)
+
+    return run_command(prog, checked_body, interrupted)
 
 
 __all__ = [

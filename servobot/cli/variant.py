@@ -3,22 +3,25 @@
 ::
 
     servobot variant [--torso-mass KG] [--leg-length M] [--servo-torque NM] [--servo-kp K]
-                     [--foot-friction MU] [--floor-friction MU] --out FILE.xml
+                     [--foot-friction MU] [--floor-friction MU] --out FILE.xml [--force]
     servobot variant --show FILE.xml
 
 Parses and prints; ``servo_mj.robot.variant`` builds the file from the shipped model with
 ``dm_control.mjcf``, checks that the robot stands and walks every gait, and writes it
-atomically. Every parameter's unit, default and meaning: ``models/servobot/README.md``.
+atomically; an existing ``--out`` file is replaced only with ``--force``. Errors name each
+parameter by its option (``--torso-mass``, not the field ``torso_mass_kg``). Every parameter's
+unit, default and meaning: ``models/servobot/README.md``.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
 from infra.io import check_output_file
-from servo_mj.robot.variant import VariantParams, read_variant, write_variant
+from servo_mj.robot.variant import VariantError, VariantParams, read_variant, write_variant
 from servobot.cli.runner import run_main
 
 PROG = "servobot variant"
@@ -48,7 +51,25 @@ def build_parser() -> argparse.ArgumentParser:
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--out", type=Path, help="variant file to write (.xml)")
     what.add_argument("--show", type=Path, metavar="FILE", help="print the parameters of FILE")
+    p.add_argument("--force", action="store_true", help="replace an existing --out file")
     return p
+
+
+def params_from_args(args: argparse.Namespace) -> VariantParams:
+    """The ``VariantParams`` of the options; ``VariantError`` naming the option as typed
+    (``--torso-mass``) for a value that is not a finite number > 0."""
+    for flag, field, _, _ in OPTIONS:
+        v = getattr(args, field)
+        if not math.isfinite(v) or v <= 0.0:
+            raise VariantError(f"{flag} must be a finite number > 0, got {v:g}")
+    return VariantParams(**{field: getattr(args, field) for _, field, _, _ in OPTIONS})
+
+
+def options_label(params: VariantParams) -> str:
+    """The variant as the options that make it, e.g. ``variant --torso-mass 0.9``."""
+    flag = {field: f for f, field, _, _ in OPTIONS}
+    changed = " ".join(f"{flag[k]} {v:g}" for k, v in params.changed().items())
+    return f"variant {changed}" if changed else "the shipped robot"
 
 
 def _print_params(params: VariantParams) -> None:
@@ -68,9 +89,11 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{args.show}: ServoBot variant")
         _print_params(params)
         return 0
-    params = VariantParams(**{field: getattr(args, field) for _, field, _, _ in OPTIONS})
+    params = params_from_args(args)
     check_output_file(args.out, option="--out")
-    path = write_variant(params, args.out)
+    if args.out.exists() and not args.force:
+        raise VariantError(f"--out {args.out}: the file exists; pass --force to replace it")
+    path = write_variant(params, args.out, label=options_label(params))
     print(f"wrote {path}: it stands and walks every gait")
     _print_params(params)
     print(f"next: servobot calibrate --model {path} --out runs/calibration_{path.stem}")

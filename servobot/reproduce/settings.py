@@ -12,7 +12,7 @@ from calibration.measure import CalibrationSettings
 from evolve.envelope import NONE, Envelope, load_envelope
 from evolve.settings import GASettings, navigation_ga_settings
 from infra.errors import InputError
-from servo_mj.robot.model import model_sha256
+from servo_mj.robot.model import check_model, model_sha256
 from servobot.robustness.matrix import RobustnessSettings
 from servobot.robustness.worlds import BUILT_IN
 
@@ -194,9 +194,10 @@ def stage_key(settings: ReproduceSettings, stage: str) -> dict[str, Any]:
 
 def check_settings(s: ReproduceSettings) -> None:
     """Every budget is an integer ≥ 1 (settle cycles and seed ≥ 0), else ``ReproduceError``;
-    a model file must exist; the envelope must load (``EnvelopeError`` naming it)."""
-    if s.model is not None and not Path(s.model).is_file():
-        raise ReproduceError(f"robot model {s.model}: no such file")
+    a model file must be a usable ServoBot model (``check_model``); the envelope must load
+    (``EnvelopeError`` naming it)."""
+    if s.model is not None:
+        check_model(s.model)  # ModelFileError (an InputError) naming the file
     if not isinstance(s.envelope, str):
         raise ReproduceError(f"setting envelope must be none, default or a file, got "
                              f"{s.envelope!r}")  # fmt: skip

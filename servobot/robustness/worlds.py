@@ -29,7 +29,7 @@ from pathlib import Path
 import mujoco
 
 from infra.errors import InputError
-from servo_mj.robot.model import ModelFileError, model_sha256
+from servo_mj.robot.model import ModelFileError, check_model, model_sha256
 from servo_mj.robot.variant import (
     VariantError,
     VariantParams,
@@ -141,8 +141,12 @@ def built_in_list() -> str:
 
 def world_from_file(path: Path) -> PhysicsWorldSpec:
     """A world whose robot is the variant MJCF file ``path`` (named by its stem), after checking
-    that MuJoCo compiles it and that the robot stands and walks one cycle of every gait;
-    ``WorldError`` naming the file otherwise."""
+    that it is a usable ServoBot model (``servo_mj.robot.model.check_model``) and that the
+    robot stands and walks one cycle of every gait; ``WorldError`` naming the file otherwise."""
+    try:
+        check_model(path, option="--worlds")  # the one gate of model files
+    except ModelFileError as exc:
+        raise WorldError(str(exc)) from exc
     try:
         params = read_variant(path)
         check_walks(mujoco.MjModel.from_xml_path(str(path)))
