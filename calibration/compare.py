@@ -180,7 +180,8 @@ def compare_tables(
     cmp = compare(specs, labels)
     out = Path(out)
     record = {"tables": [str(s) for s in specs], "labels": list(cmp.labels)}
-    with run_folder(out, record, owned=COMPARE_FILES, resumable=False, force=force):
+    with run_folder(out, record, owned=COMPARE_FILES, resumable=False, force=force,
+                    command="compare"):
         csv_path = write_csv(out / CSV_FILE, cmp)
         fig_path = save_comparison_figure(out / FIGURE_FILE, cmp)
     return Comparison(cmp.labels, cmp.values, cmp.std, fig_path, csv_path)

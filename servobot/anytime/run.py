@@ -232,7 +232,8 @@ def run_anytime(
     folder = Path(out) / "anytime"
     ex = executor or make_executor(None, None)
     kw = dict(world=world, arena=arena, physics=physics, model=model, settings=settings)
-    with run_folder(folder, doc, owned=ANYTIME_FILES, resume=resume, force=force):
+    with run_folder(folder, doc, owned=ANYTIME_FILES, resume=resume, force=force,
+                    command="anytime"):
         t1 = time.perf_counter()
         result = evolve_anytime(
             folder, stage=stage, table=table, ga=ga, world=world, settings=settings,

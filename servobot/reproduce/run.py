@@ -469,7 +469,8 @@ def reproduce(
     doc = {"ReproduceSettings": s.to_dict(), **json.loads(settings_json(world))}
     if s.envelope_value() != NONE:  # the envelope's fields, also when named by a file
         doc["Envelope"] = s.envelope_value().to_dict()
-    with run_folder(out, doc, owned=REPRODUCE_FILES, resume=True, force=force):
+    with run_folder(out, doc, owned=REPRODUCE_FILES, resume=True, force=force,
+                    command="reproduce"):
         disk = (
             s.coverage_populations
             * validation_need(s.validate_starts, s.validate_max_steps, workers, True)[1]

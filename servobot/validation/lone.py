@@ -498,7 +498,8 @@ def execute(
         for plan in plans:
             if plan.out is not None:
                 folders.enter_context(run_folder(plan.out, plan.record, owned=VALIDATION_FILES,
-                                                 resumable=False, force=plan.force))  # fmt: skip
+                                                 resumable=False, force=plan.force,
+                                                 command="validate"))  # fmt: skip
                 check_free_space(plan.out, plan.disk, what="the recordings")
         t0 = time.perf_counter()
 
