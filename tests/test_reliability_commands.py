@@ -111,3 +111,47 @@ def test_compare_refuses_a_validation_folder_and_validate_a_compare_folder(
                   "--no-progress", "--out", cmp, *force], capsys, str(cmp),
                  "'servobot compare' run")  # fmt: skip
     assert _bytes(val) == before_val and _bytes(cmp) == before_cmp
+
+
+# --------------------------------------------------------------------------- settings vs settings
+
+TINY = ["--populations", "1", "--population-size", "4", "--generations", "2", "--no-progress"]
+
+
+@pytest.mark.parametrize("robots", ["8", "9", "40"])
+def test_colony_robots_that_jam_the_start_region_are_refused_before_work(
+    chrom16, tmp_path, capsys, robots
+):
+    out = tmp_path / "out"
+    err = _refused(["evolve", "colony", "--robots", robots, "--navigation", chrom16, *TINY,
+                    "--out", out], capsys, f"--robots {robots}", "at most 7 robots",
+                   "cannot place robot")  # fmt: skip
+    assert "--robots 7 or fewer" in err
+    assert not out.exists()
+
+
+def test_colony_robots_that_fit_run(chrom16, tmp_path):
+    from evolve.settings import ColonySettings, WorldSettings
+    from evolve.starts import colony_capacity
+
+    assert colony_capacity(WorldSettings(), ColonySettings(robots=3)) == 3
+    assert colony_capacity(WorldSettings(), ColonySettings(robots=7)) == 7
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["evolve", "navigation", "--populations", "1000000000"],
+        ["evolve", "navigation", "--generations", "1000000000000000000"],
+        ["validate", "{c16}", "--starts", "1000000000"],
+        ["calibrate", "--cycles", "1000000000"],
+    ],
+)
+def test_a_refusal_for_size_leaves_no_empty_out_folder(chrom16, tmp_path, capsys, argv):
+    out = tmp_path / "new" / "out"
+    argv = [a.replace("{c16}", str(chrom16)) for a in argv]
+    _refused([*argv, "--out", out], capsys)
+    assert not (tmp_path / "new").exists()
+    out.mkdir(parents=True)  # a folder that was there stays
+    _refused([*argv, "--out", out], capsys)
+    assert out.is_dir()
