@@ -155,3 +155,146 @@ def test_a_refusal_for_size_leaves_no_empty_out_folder(chrom16, tmp_path, capsys
     out.mkdir(parents=True)  # a folder that was there stays
     _refused([*argv, "--out", out], capsys)
     assert out.is_dir()
+
+
+# --------------------------------------------------------------------------- anytime
+
+ANYTIME = ["--populations", "1", "--population-size", "8", "--generations", "4", "--every", "2",
+           "--top", "2", "--physics-starts", "1", "--physics-steps", "3", "--final-starts", "1",
+           "--executor", "serial"]  # fmt: skip
+
+
+def _anytime(nav: Path, out: Path, *more: str) -> list[str]:
+    """``servobot anytime`` with the tiny settings, an option given in ``more`` replacing its
+    default."""
+    opts = dict(zip(ANYTIME[::2], ANYTIME[1::2], strict=True))
+    opts |= dict(zip(more[::2], more[1::2], strict=True))
+    return ["anytime", "--navigation", str(nav), *[x for kv in opts.items() for x in kv],
+            "--no-progress", "--out", str(out)]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def nav(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("nav") / "nav.txt"
+    path.write_text("01 0000000 0000000 0000000 0000000\n" * 8)
+    return path
+
+
+@pytest.fixture(scope="module")
+def runs(nav, tmp_path_factory) -> dict[str, Path]:
+    """A finished bias run and a finished control (method none) run, tiny."""
+    d = tmp_path_factory.mktemp("anytime")
+    for method in ("bias", "none"):
+        assert servobot(_anytime(nav, d / method, "--method", method)) == 0
+    return {"bias": d / "bias", "none": d / "none"}
+
+
+@pytest.mark.parametrize(
+    ("more", "names"),
+    [
+        (["--every", "8"], ["--every 8 is larger than --generations 4"]),
+        (["--top", "9"], ["--top 9 is larger than --population-size 8"]),
+    ],
+)
+def test_anytime_settings_that_contradict_each_other(nav, tmp_path, capsys, more, names):
+    _refused(_anytime(nav, tmp_path / "out", *more), capsys, *names)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("more", "field"),
+    [
+        (["--generations", "6"], "GASettings.generations: 4 there, 6 here"),
+        (["--population-size", "10"], "GASettings.population_size: 8 there, 10 here"),
+        (["--seed", "3"], "GASettings.seed: 0 there, 3 here"),
+        (["--physics-steps", "4"], "AnytimeSettings.physics_steps: 3 there, 4 here"),
+        (["--table", "{table}"], "table.values"),
+    ],
+)
+def test_anytime_baseline_of_other_settings_is_refused(runs, nav, tmp_path, capsys, more, field):
+    from evolve.table import PAPER_TABLE, table_to_json
+
+    table = tmp_path / "table.json"
+    values = PAPER_TABLE.copy()
+    values[0, 0] += 1.0
+    table.write_text(json.dumps(table_to_json(values)))
+    more = [m.replace("{table}", str(table)) for m in more]
+    argv = _anytime(nav, tmp_path / "out", *more, "--baseline", str(runs["none"]))
+    _refused(argv, capsys, f"--baseline {runs['none']}", "summary.json", field)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("edit", "field"),
+    [
+        (lambda d: d["best_by_generation"].update(physics_fitness=["x", 1.0]),
+         "best_by_generation.physics_fitness"),
+        (lambda d: d["best_by_generation"].update(generations=[2]), "best_by_generation"),
+        (lambda d: d.update(best_by_generation=[1, 2]), "best_by_generation"),
+        (lambda d: d["final"].update(physics_inner_percent="41%"), "final.physics_inner_percent"),
+        (lambda d: d.update(final=None), "final.physics_inner_percent"),
+        (lambda d: d.update(settings=7), "settings"),
+        (lambda d: d.update(method=["none"]), "method"),
+    ],
+)
+def test_anytime_malformed_baseline_is_refused_before_work(
+    runs, nav, tmp_path, capsys, edit, field
+):
+    import shutil
+
+    base = tmp_path / "base"
+    shutil.copytree(runs["none"], base)
+    path = base / "anytime" / "summary.json"
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    argv = _anytime(nav, tmp_path / "out", "--baseline", str(base))
+    _refused(argv, capsys, str(path), f"field {field}")
+    assert not (tmp_path / "out").exists()
+
+
+def _bias0(rec: dict) -> None:
+    rec["bias"]["0"] = -1e308
+
+
+RECORD_EDITS = [
+    (_bias0, "field bias.0"),
+    (lambda r: r["bias"].update({"0": "1.0"}), "field bias.0"),
+    (lambda r: r.update(bias=None), "field bias"),
+    (lambda r: r["tested"][0].update(population=1), "field tested[0].population"),
+    (lambda r: r["tested"][0].update(population="0"), "field tested[0].population"),
+    (lambda r: r["tested"][0].update(ratio=1e308), "field tested[0].ratio"),
+    (lambda r: r["tested"][0].update(index=8), "field tested[0].index"),
+    (lambda r: r["tested"][0].update(section=["01 0100000"]), "field tested[0].section"),
+    (lambda r: r["tested"][0].pop("rank"), "field tested[0].rank: missing"),
+    (lambda r: r.update(tested="all"), "field tested"),
+    (lambda r: r.update(residual_sum=[[0.0] * 3] * 15), "field residual_sum"),
+    (lambda r: r.update(residual_count=[-1] * 16), "field residual_count"),
+    (lambda r: r.update(generation=3), "field generation"),
+    (lambda r: r.update(method="model"), "field method"),
+    (lambda r: r.pop("physics_runs"), "field physics_runs: missing"),
+    (lambda r: r.update(physics_wall_s=None), "field physics_wall_s"),
+]
+
+
+@pytest.mark.parametrize(("edit", "field"), RECORD_EDITS,
+                         ids=[f"{i}-{f.split()[-1]}" for i, (_, f) in enumerate(RECORD_EDITS)])
+def test_anytime_resume_names_the_record_and_field_that_fail(
+    runs, nav, tmp_path, capsys, edit, field
+):
+    import shutil
+
+    out = tmp_path / "run"
+    shutil.copytree(runs["bias"], out)
+    path = out / "anytime" / "punctuations" / "gen0002.json"
+    rec = json.loads(path.read_text())
+    edit(rec)
+    path.write_text(json.dumps(rec))
+    before = _bytes(out)
+    _refused([*_anytime(nav, out, "--method", "bias"), "--resume"], capsys, str(path), field)
+    assert _bytes(out) == before
+
+
+def test_anytime_resume_of_intact_records_runs(runs, nav, capsys):
+    code, err = _run([*_anytime(nav, runs["bias"], "--method", "bias"), "--resume"], capsys)
+    assert code == 0, err
