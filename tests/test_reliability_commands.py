@@ -298,3 +298,37 @@ def test_anytime_resume_names_the_record_and_field_that_fail(
 def test_anytime_resume_of_intact_records_runs(runs, nav, capsys):
     code, err = _run([*_anytime(nav, runs["bias"], "--method", "bias"), "--resume"], capsys)
     assert code == 0, err
+
+
+FINAL_EDITS = [
+    (lambda d: d["summary"]["physics"].update(inner_pct="high"), "summary.physics.inner_pct"),
+    (lambda d: d["summary"].update(physics_errors=-1), "summary.physics_errors"),
+    (lambda d: d["summary"].update(wall_s=None), "summary.wall_s"),
+    (lambda d: d.update(summary=[]), "field summary"),
+]
+
+
+@pytest.mark.parametrize(("edit", "field"), FINAL_EDITS)
+def test_anytime_resume_names_a_broken_final_test(runs, nav, tmp_path, capsys, edit, field):
+    import shutil
+
+    out = tmp_path / "run"
+    shutil.copytree(runs["bias"], out)
+    path = out / "anytime" / "final" / "pop0.json"
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    _refused([*_anytime(nav, out, "--method", "bias"), "--resume"], capsys, str(path), field)
+    assert json.loads(path.read_text()) == doc
+
+
+def test_anytime_resume_measures_a_final_test_of_other_genomes_again(runs, nav, tmp_path, capsys):
+    import shutil
+
+    out = tmp_path / "run"
+    shutil.copytree(runs["bias"], out)
+    path = out / "anytime" / "final" / "pop0.json"
+    path.write_text("[1, 2]")  # JSON, but not a final test: measured again
+    code, err = _run([*_anytime(nav, out, "--method", "bias"), "--resume"], capsys)
+    assert code == 0, err
+    assert json.loads(path.read_text())["population"] == 0

@@ -332,6 +332,33 @@ def run_anytime(
     return summary
 
 
+def check_final(doc: dict[str, Any], path: Path) -> dict[str, Any]:
+    """A kept final test (``final/pop{k}.json``) whose summary the report can use, else
+    ``AnytimeError`` naming the file and field (a record of other genomes, tables or starts is
+    not checked: it is measured again)."""
+    s = doc.get("summary")
+
+    def bad(field: str, why: str) -> AnytimeError:
+        return AnytimeError(f"{path}: field {field}: {why}; delete the file to measure the "
+                            "final test again, or rerun with --force")  # fmt: skip
+
+    if not isinstance(s, dict):
+        raise bad("summary", "an object")
+    for world in ("table", "physics"):
+        w = s.get(world)
+        if not isinstance(w, dict) or not _is_num(w.get("inner_pct")):
+            raise bad(f"summary.{world}.inner_pct", "a finite number or null")
+    if not isinstance(s.get("gap"), dict) or not _is_num(s["gap"].get("inner_pct_pp")):
+        raise bad("summary.gap.inner_pct_pp", "a finite number or null")
+    for field in ("physics_errors", "starts"):
+        v = s.get(field)
+        if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+            raise bad(f"summary.{field}", f"an integer ≥ 0, got {v!r}")
+    if not _is_num(s.get("wall_s"), none=False) or s["wall_s"] < 0:
+        raise bad("summary.wall_s", f"a finite number of seconds ≥ 0, got {s.get('wall_s')!r}")
+    return doc
+
+
 def _finals(
     folder: Path, result: AnytimeResult, stage: Any, ga: GASettings, ex: Executor,
     on_run: Callable[[], None] | None, *, world: WorldSettings, arena: ArenaSettings,
@@ -350,7 +377,7 @@ def _finals(
         }  # fmt: skip
         path = folder / "final" / f"pop{res.index}.json"
         done = read_json(path, what="final test", error=AnytimeError) if path.exists() else {}
-        if {k: done.get(k) for k in key} != key:
+        if not isinstance(done, dict) or {k: done.get(k) for k in key} != key:
             rep = validate(
                 full, starts, table=result.table, world=world, physics=physics, arena=arena,
                 executor=ex, max_steps=settings.physics_steps, seed=seed, model=model,
@@ -358,7 +385,7 @@ def _finals(
             )  # fmt: skip
             done = key | {"summary": rep["summary"], "runs": rep["runs"]}
             atomic_write_json(path, done)
-        out.append(done)
+        out.append(check_final(done, path))
     return out
 
 
@@ -367,6 +394,7 @@ __all__ = [
     "BASELINE_FIELDS",
     "PunctuationJob",
     "check_anytime",
+    "check_final",
     "check_summary",
     "measure_run",
     "physics_tester",
