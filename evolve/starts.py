@@ -17,6 +17,10 @@ import numpy as np
 
 from evolve.settings import ColonySettings, WorldSettings
 
+MAX_HEADING_DEG = 360.0
+"""The largest |heading| a given start pose may have (degrees; one turn either way). A larger
+one is a mistake, not a direction: 1e308's remainder modulo 360 is rounding noise."""
+
 
 def _uniform_poses(
     rng: np.random.Generator, n: int, x: tuple[float, float], y: tuple[float, float]
@@ -168,6 +172,7 @@ def colony_capacity(world: WorldSettings, colony: ColonySettings) -> int:
 
 __all__ = [
     "CAPACITY_REHEARSALS",
+    "MAX_HEADING_DEG",
     "colony_capacity",
     "colony_starts",
     "coverage_starts",

@@ -332,3 +332,77 @@ def test_anytime_resume_measures_a_final_test_of_other_genomes_again(runs, nav, 
     code, err = _run([*_anytime(nav, out, "--method", "bias"), "--resume"], capsys)
     assert code == 0, err
     assert json.loads(path.read_text())["population"] == 0
+
+
+# --------------------------------------------------------------------------- messages
+
+
+def test_duplicate_compare_labels_are_refused(tmp_path, capsys):
+    out = tmp_path / "out"
+    _refused(["compare", "paper", "paper", "--labels", "a", "a", "--out", out], capsys,
+             "--labels: 'a' given twice")  # fmt: skip
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("steps", ["0", "-1"])
+def test_trace_of_no_step_is_refused(chrom16, capsys, steps):
+    _refused(["trace", chrom16, "--start", "250", "250", "0", "--steps", steps], capsys,
+             "--steps must be ≥ 1", f"got {steps}")  # fmt: skip
+
+
+@pytest.mark.parametrize("heading", ["1e308", "361", "-720", "-1000000"])
+def test_a_heading_beyond_one_turn_is_refused_naming_the_option(
+    chrom16, tmp_path, capsys, heading
+):
+    out = tmp_path / "out"
+    start = ["--start", "250", "250", heading]
+    _refused(["trace", chrom16, *start], capsys, "--start heading", "beyond ±360°")
+    _refused(["validate", chrom16, *start, "--steps", "1", "--out", out], capsys,
+             "--start: start 0", f"heading {float(heading):g} is beyond ±360°")  # fmt: skip
+    poses = tmp_path / "poses.csv"
+    poses.write_text(f"x,y,h\n250,250,0\n260,240,{heading}\n")
+    section = tmp_path / "c8.txt"
+    section.write_text(GENE * 8)
+    _refused(["validate", section, "--poses", poses, "--steps", "1", "--out", out], capsys,
+             f"--poses {poses}: start 1", "beyond ±360°")  # fmt: skip
+    assert not out.exists()
+
+
+def test_a_heading_within_one_turn_is_accepted(chrom16, capsys):
+    code, err = _run(["trace", chrom16, "--start", "250", "250", "-360", "--steps", "1"], capsys)
+    assert code == 0, err
+
+
+def test_poses_outside_the_arena_name_the_poses_file(tmp_path, capsys):
+    poses = tmp_path / "poses.csv"
+    poses.write_text("x,y,h\n250,250,0\n900,250,0\n")
+    section = tmp_path / "c8.txt"
+    section.write_text(GENE * 8)
+    out = tmp_path / "out"
+    _refused(["validate", section, "--poses", poses, "--steps", "1", "--out", out], capsys,
+             f"--poses {poses}: start 1", "lies outside the")  # fmt: skip
+    assert not out.exists()
+
+
+def test_a_missing_navigation_file_given_is_named_as_given(tmp_path, capsys):
+    missing = tmp_path / "nope.txt"
+    for argv in (["evolve", "coverage", *TINY, "--navigation", missing],
+                 ["anytime", "--navigation", missing]):  # fmt: skip
+        err = _refused([*argv, "--out", tmp_path / "out"], capsys,
+                       f"--navigation {missing}: no such file")  # fmt: skip
+        assert "give --navigation" not in err
+    err = _refused(["evolve", "coverage", *TINY, "--out", tmp_path / "out"], capsys,
+                   "no navigation section file", "give --navigation FILE")  # fmt: skip
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_corrupt_settings_json_is_named_corrupt(chrom16, tmp_path, capsys):
+    out = tmp_path / "out"
+    code, err = _run(["compare", "paper", "paper", "--labels", "a", "b", "--out", out], capsys)
+    assert code == 0, err
+    (out / RECORD_FILE).write_text('{"command": "compare", "tables": [')
+    before = _bytes(out)
+    err = _refused(["compare", "paper", "paper", "--labels", "a", "b", "--out", out], capsys,
+                   f"{out / RECORD_FILE}: not valid JSON", "cannot be read")  # fmt: skip
+    assert "other settings" not in err
+    assert _bytes(out) == before
