@@ -406,3 +406,39 @@ def test_a_corrupt_settings_json_is_named_corrupt(chrom16, tmp_path, capsys):
                    f"{out / RECORD_FILE}: not valid JSON", "cannot be read")  # fmt: skip
     assert "other settings" not in err
     assert _bytes(out) == before
+
+
+# --------------------------------------------------------------------------- reproduce resume
+
+
+def test_reproduce_resume_names_a_damaged_coverage_summary_and_reruns_a_damaged_cell(tmp_path):
+    """The records a resumed reproduction reads: the coverage summary (its finalists) names
+    the file and field; a robustness cell's report that is not one is run again."""
+    from servobot.reproduce.run import ReproduceError, reproduce
+    from servobot.reproduce.settings import ReproduceSettings
+
+    tiny = ReproduceSettings(
+        calibration_cycles=1, calibration_settle_cycles=0,
+        navigation_populations=1, navigation_population_size=6, navigation_generations=2,
+        coverage_populations=2, coverage_population_size=6, coverage_generations=2,
+        test_starts=4, validate_starts=1, validate_max_steps=3, validate_navigation_starts=1,
+        robustness_starts=1, robustness_finalists=1, seed=3,
+    )  # fmt: skip
+    quiet = dict(settings=tiny, workers=1, log=lambda _m: None)
+    out = tmp_path / "run"
+    reproduce(out, **quiet)
+    (out / "robustness" / "done.json").unlink()
+    summary = out / "coverage" / "summary.json"
+    good = summary.read_bytes()
+    doc = json.loads(good)
+    for bad in (None, ["41%", 3.0], [], "all"):
+        summary.write_text(json.dumps(doc | {"final_inner_percent": bad}))
+        with pytest.raises(ReproduceError, match=rf"{summary}: field final_inner_percent"):
+            reproduce(out, **quiet)
+    summary.write_bytes(good)
+    cell = next((out / "robustness" / "runs").glob("*/*/report.json"))
+    cell.write_text(json.dumps({"settings": ["abc"], "chromosome": "x"}))  # dict() → ValueError
+    runs: list = []
+    reproduce(out, **quiet, on_run=runs.append)
+    assert len(runs) == tiny.robustness_starts  # the damaged cell only, run again
+    assert json.loads(cell.read_text())["chromosome"] != "x"

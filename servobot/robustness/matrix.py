@@ -231,8 +231,8 @@ def finished_report(cell: Cell, expected: dict[str, Any]) -> dict[str, Any] | No
             "starts": [r["start"] for r in doc["runs"]],
             "settings": settings,
         }
-    except (ReadError, KeyError, TypeError):
-        return None
+    except (ReadError, KeyError, TypeError, ValueError):
+        return None  # not a report of this cell: it is run again
     return doc if have == expected else None
 
 
