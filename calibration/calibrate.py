@@ -153,7 +153,8 @@ def calibrate(
         "gait_params": library.to_dict(),
         "model_sha256": model_sha256(settings.model),
     }
-    with run_folder(out, record, owned=CALIBRATION_FILES, resumable=False, force=force):
+    with run_folder(out, record, owned=CALIBRATION_FILES, resumable=False, force=force,
+                    command="calibrate"):
         return _measure(
             Path(out), settings, library, fit, params_out, workers=workers, executor=executor,
             model=model, world=world, on_frame=on_frame, on_cycle=on_cycle, log=log,

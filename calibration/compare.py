@@ -111,6 +111,12 @@ def compare(specs: list[str], labels: list[str] | None = None) -> Comparison:
     labels = labels or default_labels(specs)
     if len(labels) != len(specs):
         raise CompareError(f"{len(labels)} labels for {len(specs)} tables")
+    repeated = sorted({lb for lb in labels if labels.count(lb) > 1})
+    if repeated:
+        raise CompareError(
+            f"--labels: {', '.join(map(repr, repeated))} given twice; each table needs its own "
+            "label (the figure's legend and the CSV's columns are named by them)"
+        )
     cols = [_columns(load_table(s)) for s in specs]
     return Comparison(labels, np.stack([c[0] for c in cols]), np.stack([c[1] for c in cols]))
 
@@ -180,7 +186,8 @@ def compare_tables(
     cmp = compare(specs, labels)
     out = Path(out)
     record = {"tables": [str(s) for s in specs], "labels": list(cmp.labels)}
-    with run_folder(out, record, owned=COMPARE_FILES, resumable=False, force=force):
+    with run_folder(out, record, owned=COMPARE_FILES, resumable=False, force=force,
+                    command="compare"):
         csv_path = write_csv(out / CSV_FILE, cmp)
         fig_path = save_comparison_figure(out / FIGURE_FILE, cmp)
     return Comparison(cmp.labels, cmp.values, cmp.std, fig_path, csv_path)

@@ -387,22 +387,154 @@ def _apply_bias_rule(tested: list[dict[str, Any]], runs: list[PopulationRun]) ->
     return means
 
 
-def load_records(folder: Path, generations: tuple[int, ...]) -> dict[int, dict[str, Any]]:
-    """The punctuation records in ``folder/punctuations`` (a resumed run reuses them)."""
+MAX_SQUARES = 100
+"""Squares of the arena a run can reach (SPEC §5): the largest fitness of a run."""
+
+
+def _is_int(v: Any, lo: int = 0, hi: int | None = None) -> bool:
+    return (isinstance(v, int) and not isinstance(v, bool) and v >= lo
+            and (hi is None or v < hi))  # fmt: skip
+
+
+def _is_real(v: Any, lo: float = 0.0, hi: float = float("inf")) -> bool:
+    return (isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+            and lo <= v <= hi)  # fmt: skip
+
+
+def _numbers(v: Any, shape: tuple[int, ...], ok: Callable[[Any], bool]) -> bool:
+    """``v`` a nested list of ``shape`` whose every element passes ``ok``."""
+    if not shape:
+        return ok(v)
+    return (isinstance(v, list) and len(v) == shape[0]
+            and all(_numbers(x, shape[1:], ok) for x in v))  # fmt: skip
+
+
+def check_record(
+    rec: Any, path: Path, *, generations: tuple[int, ...], ga: GASettings,
+    settings: AnytimeSettings,
+) -> dict[str, Any]:  # fmt: skip
+    """``rec`` if it is a punctuation record this run could have written at ``path``, else
+    ``AnytimeError`` naming the file and the first field that is not: every field a resumed
+    run replays (generation, method, the tested genomes and their ratios, the biases, the
+    residuals) is of its type and in its range, so that a replay computes nothing absurd."""
+
+    def bad(name: str, why: str) -> AnytimeError:
+        return AnytimeError(
+            f"{path}: not a punctuation record of this run (edited or damaged?): field {name}: "
+            f"{why}; delete it and the later records to measure them again, or rerun with --force"
+        )
+
+    if not isinstance(rec, dict):
+        raise bad("(the record)", f"a JSON object, got a {type(rec).__name__}")
+    missing = [k for k in RECORD_KEYS if k not in rec]
+    if missing:
+        raise bad(missing[0], "missing")
+    g = rec["generation"]
+    if not _is_int(g, 1) or g not in generations:
+        raise bad("generation", f"one of this run's punctuations {list(generations)}, got {g!r}")
+    if path.name != f"gen{g:04d}.json":
+        raise bad("generation", f"{g} belongs in gen{g:04d}.json")
+    if rec["method"] != settings.method:
+        raise bad("method", f"this run's method {settings.method!r}, got {rec['method']!r}")
+    m, p, top = settings.physics_starts, ga.populations, settings.top
+    if not _numbers(rec["starts"], (m, 3), lambda v: _is_real(v, -1e6, 1e6)):
+        raise bad("starts", f"{m} start poses of three finite numbers")
+    if not _is_int(rec["noise_seed"]):
+        raise bad("noise_seed", "an integer ≥ 0")
+    tested = rec["tested"]
+    if not isinstance(tested, list) or not 0 < len(tested) <= p * top:
+        raise bad("tested", f"a list of 1 to {p * top} tested genomes ({p} populations × top "
+                  f"{top})")  # fmt: skip
+    seen = set()
+    for j, t in enumerate(tested):
+        name = f"tested[{j}]"
+        if not isinstance(t, dict):
+            raise bad(name, "an object")
+        for key in ("population", "rank", "index", "section", "table_fitness",
+                    "physics_fitness", "ratio"):  # fmt: skip
+            if key not in t:
+                raise bad(f"{name}.{key}", "missing")
+        checks = (
+            ("population", _is_int(t["population"], 0, p), f"a population 0–{p - 1} of this run"),
+            ("rank", _is_int(t["rank"], 0, top), f"a rank 0–{top - 1} (top {top})"),
+            ("index", _is_int(t["index"], 0, ga.population_size),
+             f"an individual 0–{ga.population_size - 1} of a population"),
+            ("table_fitness", _is_real(t["table_fitness"], 0.0, MAX_SQUARES),
+             f"a finite number of squares 0–{MAX_SQUARES}"),
+            ("physics_fitness", t["physics_fitness"] is None
+             or _is_real(t["physics_fitness"], 0.0, MAX_SQUARES),
+             f"null or a finite number of squares 0–{MAX_SQUARES}"),
+            ("ratio", t["ratio"] is None or _is_real(t["ratio"], 0.0, MAX_SQUARES * m),
+             f"null or a finite ratio 0–{MAX_SQUARES * m}"),
+        )  # fmt: skip
+        for key, ok, want in checks:
+            if not ok:
+                raise bad(f"{name}.{key}", f"{want}, got {t[key]!r}")
+        if (t["population"], t["rank"]) in seen:
+            raise bad(f"{name}", f"population {t['population']} rank {t['rank']} twice")
+        seen.add((t["population"], t["rank"]))
+        section = t["section"]
+        try:
+            if not (isinstance(section, list) and all(isinstance(x, str) for x in section)):
+                raise ValueError("a list of gene texts")
+            if parse_chromosome("\n".join(section)).shape[0] != len(section) or len(section) != 8:
+                raise ValueError("8 genes")
+        except ValueError as exc:
+            raise bad(f"{name}.section", f"a coverage section of 8 genes ({exc})") from None
+    bias = rec["bias"]
+    if settings.method == "bias":
+        want = [str(k) for k in range(p)]
+        if not isinstance(bias, dict) or sorted(bias) != sorted(want):
+            raise bad("bias", f"an object with a bias for each population {', '.join(want)}")
+        for k in want:
+            if not _is_real(bias[k], 0.0, MAX_SQUARES * m):
+                raise bad(f"bias.{k}", f"a finite bias 0–{MAX_SQUARES * m}, got {bias[k]!r}")
+    elif bias is not None:
+        raise bad("bias", f"null for method {settings.method}, got {bias!r}")
+    if not isinstance(rec["table_error"], dict):
+        raise bad("table_error", "an object")
+    if not _numbers(rec["residual_sum"], (N_GAITS, 3), lambda v: _is_real(v, -1e12, 1e12)):
+        raise bad("residual_sum", f"{N_GAITS} rows of three finite numbers")
+    if not _numbers(rec["residual_count"], (N_GAITS,), lambda v: _is_int(v, 0, 10**12)):
+        raise bad("residual_count", f"{N_GAITS} integers ≥ 0")
+    for key in ("physics_cycles", "physics_runs", "physics_errors"):
+        if not _is_int(rec[key], 0, 10**12):
+            raise bad(key, f"an integer ≥ 0, got {rec[key]!r}")
+    if not _is_real(rec["physics_wall_s"]):
+        wall = rec["physics_wall_s"]
+        raise bad("physics_wall_s", f"a finite number of seconds ≥ 0, got {wall!r}")
+    return rec
+
+
+RECORD_KEYS = (
+    "generation", "method", "starts", "noise_seed", "tested", "bias", "table_error",
+    "residual_sum", "residual_count", "physics_cycles", "physics_runs", "physics_errors",
+    "physics_wall_s",
+)  # fmt: skip
+"""The fields of a punctuation record that a resumed run replays or reports."""
+
+
+def load_records(
+    folder: Path, generations: tuple[int, ...], ga: GASettings, settings: AnytimeSettings,
+    base: GaitTable | None = None,
+) -> dict[int, dict[str, Any]]:  # fmt: skip
+    """The punctuation records in ``folder/punctuations`` (a resumed run reuses them), each
+    checked (``check_record``); method model: the table each one corrects to (from ``base``)
+    must be within the table bounds. ``AnytimeError`` names the file and field that fail."""
     records = {}
     for path in sorted((folder / RECORDS).glob("gen*.json")):
         rec = read_json(path, what="punctuation record", error=AnytimeError)
-        try:
-            g = int(rec["generation"])
-            ok = path.name == f"gen{g:04d}.json" and g in generations
-            ok = ok and np.shape(rec["residual_sum"]) == (N_GAITS, 3)
-            ok = ok and np.shape(rec["residual_count"]) == (N_GAITS,)
-            ok = ok and isinstance(rec["tested"], list)
-        except (KeyError, TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise AnytimeError(f"{path}: not a punctuation record of this run; delete it")
+        check_record(rec, path, generations=generations, ga=ga, settings=settings)
+        g = rec["generation"]
         records[g] = rec
+        if base is not None and settings.method == "model":
+            try:
+                model_table(base, records, g, settings)
+            except ValueError as exc:
+                raise AnytimeError(
+                    f"{path}: field residual_sum: the table it corrects to is not physical "
+                    f"({exc}); delete it and the later records, or rerun with --force"
+                ) from None
     return records
 
 
@@ -459,13 +591,13 @@ def evolve_anytime(
     into each corrected table's file (method ``model``: ``tables/gen{g:04d}.json``)."""
     folder = Path(folder)
     gens = punctuation_generations(ga.generations, settings.every)
+    records = load_records(folder, gens, ga, settings, table) if resume else {}
     _, seqs = stage_seeds(ga.seed, "coverage", ga.populations)
     runs = [
         PopulationRun(k, stage, folder, seed_seq=seqs[k], table=table, ga=ga, world=world,
                       settings_text=settings_text, resume=resume)
         for k in range(ga.populations)
     ]  # fmt: skip
-    records = load_records(folder, gens) if resume else {}
     physics_s = 0.0
     while live := [r for r in runs if not r.finished]:
         g = min(r.generation for r in live)
@@ -574,6 +706,7 @@ __all__ = [
     "corrected_table",
     "evolve_anytime",
     "final_starts",
+    "check_record",
     "load_records",
     "model_table",
     "population_bias",

@@ -40,7 +40,7 @@ from evolve.stages import (
     figure9_both,
     figure9_summary,
 )
-from evolve.starts import colony_starts
+from evolve.starts import CAPACITY_REHEARSALS, colony_capacity, colony_starts
 from evolve.table import GaitTable
 from infra.executors import Executor
 from infra.io import atomic_write_json
@@ -65,10 +65,15 @@ def colony_stage(
     """The colony's ``Stage``: coverage mode, colony starts, colony squares as run fitness, in
     ``envelope``."""
     nav = _check_navigation(navigation)
-    try:
-        colony_starts(np.random.default_rng(0), 1, world, colony)
-    except ValueError as exc:
-        raise StageError(str(exc)) from exc
+    fit = colony_capacity(world, colony)
+    if fit < colony.robots:
+        raise StageError(
+            f"--robots {colony.robots}: cannot place robot {fit + 1} of {colony.robots} reliably "
+            f"at least {colony.start_separation:g} units from the others in the start region x "
+            f"{world.coverage_start_x}, y {world.coverage_start_y}: robots placed one at a time "
+            f"at random jam there; at most {fit} robots fit every one of "
+            f"{CAPACITY_REHEARSALS} rehearsed colony starts, so give --robots {fit} or fewer"
+        )
     return Stage(
         "colony",
         "coverage",

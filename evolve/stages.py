@@ -247,7 +247,8 @@ def _stage_folder(
     check_ga(ga, stage.max_steps)
     check_envelope(stage, table, world)
     doc = stage_settings_doc(stage, ga, world, table)
-    with run_folder(folder, doc, owned=STAGE_FILES, resume=resume, force=force):
+    with run_folder(folder, doc, owned=STAGE_FILES, resume=resume, force=force,
+                    command=f"evolve {stage.name}"):
         yield doc
 
 

@@ -267,13 +267,45 @@ def check_output_dir(path: str | Path, *, option: str = "--out") -> Path:
     try:
         if path.exists() and not path.is_dir():
             raise OutputError(f"{option} {path}: is a file, not a folder")
+        missing = [d for d in (path, *path.parents) if not d.exists()]
         path.mkdir(parents=True, exist_ok=True)
+        _CREATED.extend(d for d in missing if d not in _CREATED)
         _probe(path)
     except OutputError:
         raise
     except OSError as exc:
         raise OutputError(f"{option} {path}: cannot write there ({exc.strerror or exc})") from exc
     return path
+
+
+_CREATED: list[Path] = []
+"""The folders ``check_output_dir`` created since ``forget_created_folders()`` (a refused
+command removes those it left empty: ``remove_created_folders``)."""
+
+
+def forget_created_folders() -> None:
+    """Start a command: no folder created yet."""
+    _CREATED.clear()
+
+
+def remove_created_folders() -> list[Path]:
+    """Remove the folders ``check_output_dir`` created that are still empty (an empty, free
+    ``.lock`` aside), deepest first, so that a command refused before any work leaves no
+    empty ``--out`` behind; returns those removed."""
+    removed = []
+    for d in sorted(_CREATED, key=lambda d: -len(d.parts)):
+        try:
+            entries = list(d.iterdir())
+            if any(e.name != ".lock" or not e.is_file() or e.stat().st_size for e in entries):
+                continue
+            for e in entries:
+                e.unlink()
+            d.rmdir()
+            removed.append(d)
+        except OSError:
+            continue
+    _CREATED.clear()
+    return removed
 
 
 def check_free_space(folder: str | Path, need_bytes: float, *, what: str) -> None:
@@ -317,11 +349,13 @@ __all__ = [
     "check_output_dir",
     "check_output_file",
     "decode_text",
+    "forget_created_folders",
     "held_signals",
     "parse_json",
     "partial_path",
     "read_bytes",
     "read_json",
     "read_text",
+    "remove_created_folders",
     "remove_partials",
 ]

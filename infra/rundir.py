@@ -16,7 +16,13 @@ into a folder runs inside. Before anything in the folder is touched it
    - the same settings: with ``resume`` (or for a command that cannot resume, which simply
      redoes its outputs) the run goes on; a resumable command without ``resume`` is refused,
      so that finished work is never overwritten by accident;
-   - other settings, or run files without a record: refused, naming the differing settings.
+   - other settings, or run files without a record: refused, naming the differing settings;
+   - a record that cannot be read (not JSON, not an object): refused, naming the file;
+   - a record of another command (its ``command`` field; ``run_folder(..., command=...)``
+     writes it): refused, naming that command, **also with ``force``**: ``force`` deletes
+     only this command's own files, so it would mix the two runs' files in one folder. A
+     record without ``command`` (written before commands were recorded) is an unknown
+     command: its folder is judged by this run's own files, as before.
 
    ``force`` starts afresh instead: it deletes only the files that match ``owned`` (and
    folders left empty by that), never anything else in the folder.
@@ -44,6 +50,8 @@ from infra.io import ReadError, atomic_write_json, check_output_dir, read_json, 
 
 RECORD_FILE = "settings.json"
 """A run folder's ownership record: the settings the run in it was made with."""
+COMMAND_KEY = "command"
+"""The ownership record's field naming the command whose run the folder holds."""
 LOCK_FILE = ".lock"
 """The file a running command holds an OS lock on (never deleted; names the holder while
 held, empty otherwise)."""
@@ -140,20 +148,54 @@ def _refuse(folder: Path, why: str, option: str) -> RunDirError:
     )
 
 
+def record_of(settings: Mapping[str, Any], command: str | None) -> dict[str, Any]:
+    """The ownership record a run with ``settings`` of ``command`` writes: the settings as
+    JSON, with ``command`` first (when given)."""
+    doc = json.loads(json.dumps(settings))
+    return doc if command is None else {COMMAND_KEY: command} | doc
+
+
+def record_command(have: Any) -> str | None:
+    """The command named by an ownership record (None: not recorded, an older record)."""
+    cmd = have.get(COMMAND_KEY) if isinstance(have, dict) else None
+    return cmd if isinstance(cmd, str) else None
+
+
 def _take(
     folder: Path, settings: Any, owned: Sequence[str], resume: bool, resumable: bool, force: bool,
-    option: str,
+    option: str, command: str | None = None,
 ) -> str:  # fmt: skip
     """Check the ownership record against ``settings``; returns the claim's state."""
-    want = json.loads(json.dumps(settings))
+    want = record_of(settings, command)
     record = folder / RECORD_FILE
     files = [p for p in owned_files(folder, owned) if p != record]
     have: Any = None
+    bad = None  # why the record cannot be read
     if record.exists():
         try:
             have = read_json(record, what="run settings record")
         except ReadError as exc:
-            have = {"unreadable record": exc.reason}
+            bad = exc.reason
+        if bad is None and not isinstance(have, dict):
+            bad = f"not a settings object but a JSON {type(have).__name__}"
+    theirs = record_command(have)
+    if command is not None and theirs is not None and theirs != command:
+        raise RunDirError(
+            f"{folder} holds a 'servobot {theirs}' run ({record} says so), not a 'servobot "
+            f"{command}' one; nothing in it was changed. Use another {option} (--force cannot "
+            f"take over another command's folder: it deletes only {command}'s own files and "
+            "would mix the two runs)"
+        )
+    if isinstance(have, dict) and theirs is None and command is not None:
+        want = record_of(settings, None)  # an older record, without a command: compare as before
+    if bad is not None:
+        if force:
+            clear_owned(folder, [*owned, RECORD_FILE])
+            return "forced"
+        raise _refuse(
+            folder, f"has an ownership record that cannot be read ({record}: {bad}), so whose "
+            "run it holds is unknown", option,
+        )  # fmt: skip
     if force and (files or (have is not None and have != want)):
         clear_owned(folder, [*owned, RECORD_FILE])
         return "forced"
@@ -184,20 +226,23 @@ def run_folder(
     resumable: bool = True,
     force: bool = False,
     option: str = "--out",
+    command: str | None = None,
 ) -> Iterator[Claim]:
     """Take ``folder`` for a run with ``settings`` (a JSON-able mapping) for the block.
 
     ``owned``: globs (relative to ``folder``) of every file the run writes; ``resumable``:
     whether the command can continue a run (``resume``) or only redo it; ``option`` names
-    the folder's command-line option in messages. See the module docstring for the rules.
+    the folder's command-line option in messages; ``command`` (``"validate"``, ``"evolve
+    coverage"``, ...) is recorded, and a folder recording another command is refused. See the
+    module docstring for the rules.
     Raises ``RunDirError`` (or ``infra.io.OutputError``) before touching anything.
     """
     folder = check_output_dir(folder, option=option)
     with folder_lock(folder, option=option):
         for d in _owned_dirs(folder, owned):
             remove_partials(d)
-        state = _take(folder, settings, owned, resume, resumable, force, option)
-        atomic_write_json(folder / RECORD_FILE, settings)
+        state = _take(folder, settings, owned, resume, resumable, force, option, command)
+        atomic_write_json(folder / RECORD_FILE, record_of(settings, command))
         try:
             yield Claim(folder, state)
         except BaseException:  # the run's writers have stopped: drop their temporary files
@@ -207,6 +252,7 @@ def run_folder(
 
 
 __all__ = [
+    "COMMAND_KEY",
     "LOCK_FILE",
     "RECORD_FILE",
     "Claim",
@@ -214,6 +260,8 @@ __all__ = [
     "clear_owned",
     "folder_lock",
     "owned_files",
+    "record_command",
+    "record_of",
     "run_folder",
     "settings_diff",
 ]

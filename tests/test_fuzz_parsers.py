@@ -254,6 +254,105 @@ def test_json_reader_of_any_bytes(scratch, data):
         _named(exc, path)
 
 
+# --------------------------------------------------------------------------- anytime records
+
+ANYTIME_GA = GASettings(populations=2, population_size=8, generations=4, test_starts=2)
+SECTION = [GENE] * 8
+
+
+def _punctuation(method: str) -> dict:
+    """A punctuation record as ``evolve.anytime`` writes it (2 populations, top 2, M = 2)."""
+    tested = [
+        {"population": k, "rank": r, "index": r, "section": SECTION, "table_fitness": 10.0 + r,
+         "physics_fitness": 5.0, "table_squares": [10, 11], "physics_squares": [5, 5],
+         "physics_inner_squares": [3, 3], "physics_ends": ["steps", "steps"], "errors": [],
+         "ratio": 0.5}
+        for k in range(2) for r in range(2)
+    ]  # fmt: skip
+    return {
+        "generation": 2, "method": method, "starts": [[400.0, 250.0, 10.0], [380.0, 200.0, 0.0]],
+        "noise_seed": 7, "tested": tested,
+        "bias": {"0": 0.5, "1": 0.25} if method == "bias" else None,
+        "table_error": {"F": 1.0, "T": 0.5, "dH": None, "cycles": 40},
+        "table_in_use": PAPER_TABLE.tolist(),
+        "residual_sum": [[-10.0, 2.0, 1.0]] * 16, "residual_count": [40] * 16,
+        "physics_cycles": 80, "physics_runs": 8, "physics_errors": 0, "physics_wall_s": 1.5,
+    }  # fmt: skip
+
+
+@FUZZ
+@given(
+    method=st.sampled_from(["bias", "model", "none"]),
+    data=st.data(),
+)
+def test_anytime_punctuation_records_of_any_mutation(scratch, method, data):
+    """What ``servobot anytime --resume`` replays: a record passes ``load_records`` only if
+    every use of it on replay works (biases, the corrected table, the summary)."""
+    from evolve.anytime import (
+        AnytimeSettings,
+        load_records,
+        model_table,
+        pooled_residuals,
+        population_bias,
+    )
+    from evolve.table import GaitTable
+    from servobot.anytime.report import best_curve, punctuation_entry
+
+    text = data.draw(st.binary(max_size=200).map(lambda b: b.decode("latin-1"))
+                     | _mutated_json(_punctuation(method)))  # fmt: skip
+    folder = scratch / "anytime"
+    (folder / "punctuations").mkdir(parents=True, exist_ok=True)
+    path = folder / "punctuations" / "gen0002.json"
+    path.write_text(text)
+    settings = AnytimeSettings(method=method, every=2, top=2, physics_starts=2, min_samples=20)
+    base = GaitTable(PAPER_TABLE)
+    try:
+        records = load_records(folder, (2, 4), ANYTIME_GA, settings, base)
+    except Exception as exc:  # noqa: BLE001
+        _named(exc, path)
+        return
+    sections = np.zeros((8, 8, 30), dtype=np.uint8)
+    for k in range(2):
+        f = population_bias(records, k, 2).factors(sections) if method == "bias" else np.ones(8)
+        assert np.isfinite(f).all() and (f >= 0).all() and (f <= 200).all()
+    total, count = pooled_residuals(records, 4)
+    assert np.isfinite(total).all() and (count >= 0).all()
+    table = model_table(base, records, 4, settings).values
+    assert np.isfinite(table).all()
+    entry = punctuation_entry(records[2])
+    assert entry["generation"] == 2
+    json.dumps(best_curve(list(records.values())), allow_nan=False)
+
+
+SUMMARY = {
+    "method": "none", "best_by_generation": {"generations": [2, 4],
+    "physics_fitness": [5.0, None], "table_fitness": [10.0, 12.5]},
+    "final": {"physics_inner_percent": 12.5, "table_inner_percent": 30.0},
+    "settings": {"GASettings": {"seed": 0}},
+}  # fmt: skip
+
+
+@FUZZ
+@given(data=st.binary(max_size=200) | _mutated_json(SUMMARY).map(str.encode))
+def test_anytime_baseline_summaries_of_any_bytes(scratch, data):
+    """``--baseline``: a summary passes ``check_summary`` only if the figure can draw it."""
+    from servobot.anytime.report import _label
+    from servobot.anytime.run import check_summary
+
+    path = scratch / "summary.json"
+    path.write_bytes(data)
+    try:
+        doc = check_summary(read_json(path, what="anytime summary"), path, method="none")
+    except Exception as exc:  # noqa: BLE001
+        _named(exc, path)
+        return
+    curve = doc["best_by_generation"]
+    for k in ("generations", "physics_fitness", "table_fitness"):
+        values = np.array([np.nan if v is None else v for v in curve[k]], dtype=np.float64)
+        assert values.shape == (len(curve["generations"]),)
+    assert isinstance(_label(doc), str)
+
+
 # --------------------------------------------------------------------------- checkpoints
 
 GA = GASettings(populations=1, population_size=4, generations=3, test_starts=2)

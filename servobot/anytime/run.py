@@ -62,7 +62,7 @@ from evolve.table import GaitTable
 from infra.bounds import check_need
 from infra.executors import Executor, Failed, make_executor
 from infra.io import atomic_write_json, read_json
-from infra.rundir import run_folder
+from infra.rundir import run_folder, settings_diff
 from servo_mj.robot.model import ModelFile, model_label, model_sha256
 from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings, station_distance_cm
@@ -153,8 +153,22 @@ def physics_tester(
 
 
 def check_anytime(ga: GASettings, settings: AnytimeSettings, workers: int | None) -> None:
-    """Refuse sizes whose table evolution or physics runs the machine cannot give."""
+    """Refuse settings that contradict each other (a run with no punctuation, more genomes
+    tested than a population holds) and sizes whose table evolution or physics runs the
+    machine cannot give."""
     check_ga(ga, WorldSettings().coverage_steps)
+    if settings.every > ga.generations:
+        raise AnytimeError(
+            f"--every {settings.every} is larger than --generations {ga.generations}: the run "
+            f"would have no punctuation (physics tests at generations K, 2K, … ≤ G); give "
+            f"--every {ga.generations} or less"
+        )
+    if settings.top > ga.population_size:
+        raise AnytimeError(
+            f"--top {settings.top} is larger than --population-size {ga.population_size}: a "
+            f"punctuation cannot test more genomes than a population holds; give --top "
+            f"{ga.population_size} or less"
+        )
     punct = len(punctuation_generations(ga.generations, settings.every))
     runs = punct * ga.populations * settings.top * settings.physics_starts
     runs += ga.populations * settings.final_starts
@@ -163,21 +177,79 @@ def check_anytime(ga: GASettings, settings: AnytimeSettings, workers: int | None
                      "steps")  # fmt: skip
 
 
-def read_baseline(path: Path, seed: int) -> dict[str, Any]:
+BASELINE_FIELDS = ("GASettings", "AnytimeSettings", "table", "WorldSettings", "PhysicsSettings",
+                   "ArenaSettings", "model_sha256")  # fmt: skip
+"""The settings a ``--baseline`` run must share with this run to be drawn beside it (its
+method aside): the GA's sizes and seed, the punctuations, the base table, the worlds and
+the robot model. The envelope may differ (a run in an envelope against the plain control)."""
+
+
+def _comparable(doc: dict[str, Any]) -> dict[str, Any]:
+    out = {k: doc.get(k) for k in BASELINE_FIELDS}
+    if isinstance(out["AnytimeSettings"], dict):
+        out["AnytimeSettings"] = {k: v for k, v in out["AnytimeSettings"].items() if k != "method"}
+    return out
+
+
+def _is_num(v: Any, *, none: bool = True) -> bool:
+    if v is None:
+        return none
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
+def check_summary(doc: Any, file: Path, method: str | None = None) -> dict[str, Any]:
+    """``doc`` if it is an anytime ``summary.json`` (of ``method``, when given) that the
+    figure can draw, else ``AnytimeError`` naming ``file`` and the field."""
+    if not isinstance(doc, dict) or not {"method", "best_by_generation", "final"} <= set(doc):
+        raise AnytimeError(f"{file}: not the summary of a servobot anytime run")
+
+    def bad(field: str, why: str) -> AnytimeError:
+        return AnytimeError(f"{file}: field {field}: {why}; not a summary of a finished run")
+
+    if not isinstance(doc["method"], str):
+        raise bad("method", f"a method name, got {doc['method']!r}")
+    if method is not None and doc["method"] != method:
+        raise AnytimeError(f"{file}: the baseline must be a --method {method} run, not "
+                           f"{doc['method']}")  # fmt: skip
+    curve = doc["best_by_generation"]
+    keys = ("generations", "physics_fitness", "table_fitness")
+    if not isinstance(curve, dict) or not all(isinstance(curve.get(k), list) for k in keys):
+        raise bad("best_by_generation", f"an object of the lists {', '.join(keys)}")
+    if len({len(curve[k]) for k in keys}) != 1:
+        raise bad("best_by_generation", "its lists differ in length")
+    if not all(isinstance(g, int) and not isinstance(g, bool) and g >= 0
+               for g in curve["generations"]):  # fmt: skip
+        raise bad("best_by_generation.generations", "generations are integers ≥ 0")
+    for k in keys[1:]:
+        if not all(_is_num(v) for v in curve[k]):
+            raise bad(f"best_by_generation.{k}", "fitnesses are finite numbers or null")
+    final = doc["final"]
+    if not isinstance(final, dict) or not _is_num(final.get("physics_inner_percent")):
+        raise bad("final.physics_inner_percent", "a finite number or null")
+    if not isinstance(doc.get("settings"), dict):
+        raise bad("settings", "the run's settings object")
+    return doc
+
+
+def read_baseline(path: Path, doc: dict[str, Any]) -> dict[str, Any]:
     """The summary of the control run in ``path`` (a ``--method none`` run's DIR, or its
-    ``anytime`` folder); ``AnytimeError`` unless it is one with the same seed."""
+    ``anytime`` folder); ``AnytimeError`` unless it is a well-formed one whose settings
+    (``BASELINE_FIELDS``) are this run's (``doc``, its settings document), naming the file
+    and the first differing fields."""
     path = Path(path)
     file = next((p for p in (path / "anytime/summary.json", path / "summary.json") if p.exists()),
                 path / "anytime/summary.json")  # fmt: skip
-    doc = read_json(file, what="anytime summary", error=AnytimeError)
-    if not isinstance(doc, dict) or not {"method", "best_by_generation", "final"} <= set(doc):
-        raise AnytimeError(f"{file}: not the summary of a servobot anytime run")
-    if doc["method"] != "none":
-        raise AnytimeError(f"{file}: the baseline must be a --method none run, not {doc['method']}")
-    theirs = doc.get("settings", {}).get("GASettings", {}).get("seed")
-    if theirs != seed:
-        raise AnytimeError(f"{file}: the baseline ran with seed {theirs}, this run with {seed}")
-    return doc
+    doc_read = read_json(file, what="anytime summary", error=AnytimeError)
+    base = check_summary(doc_read, file, method="none")
+    diff = settings_diff(_comparable(base["settings"]), _comparable(doc))
+    if diff:
+        more = f" and {len(diff) - 3} more" if len(diff) > 3 else ""
+        raise AnytimeError(
+            f"--baseline {path}: {file} is a run with other settings than this one "
+            f"({'; '.join(diff[:3])}{more}); a baseline must share the GA sizes and seed, the "
+            "punctuations, the table, the worlds and the model"
+        )
+    return base
 
 
 def run_anytime(
@@ -219,7 +291,6 @@ def run_anytime(
     physics = physics or PhysicsSettings()
     arena = arena or ArenaSettings()
     check_anytime(ga, settings, None)
-    control = None if baseline is None else read_baseline(baseline, ga.seed)
     stage = dataclasses.replace(coverage_stage(world, navigation, envelope),
                                 extra_settings=(settings,))  # fmt: skip
     doc = stage_settings_doc(stage, ga, world, table) | {
@@ -229,10 +300,12 @@ def run_anytime(
         "model": model_label(model),
         "model_sha256": model_sha256(model),
     }
+    control = None if baseline is None else read_baseline(baseline, doc)
     folder = Path(out) / "anytime"
     ex = executor or make_executor(None, None)
     kw = dict(world=world, arena=arena, physics=physics, model=model, settings=settings)
-    with run_folder(folder, doc, owned=ANYTIME_FILES, resume=resume, force=force):
+    with run_folder(folder, doc, owned=ANYTIME_FILES, resume=resume, force=force,
+                    command="anytime"):
         t1 = time.perf_counter()
         result = evolve_anytime(
             folder, stage=stage, table=table, ga=ga, world=world, settings=settings,
@@ -259,6 +332,33 @@ def run_anytime(
     return summary
 
 
+def check_final(doc: dict[str, Any], path: Path) -> dict[str, Any]:
+    """A kept final test (``final/pop{k}.json``) whose summary the report can use, else
+    ``AnytimeError`` naming the file and field (a record of other genomes, tables or starts is
+    not checked: it is measured again)."""
+    s = doc.get("summary")
+
+    def bad(field: str, why: str) -> AnytimeError:
+        return AnytimeError(f"{path}: field {field}: {why}; delete the file to measure the "
+                            "final test again, or rerun with --force")  # fmt: skip
+
+    if not isinstance(s, dict):
+        raise bad("summary", "an object")
+    for world in ("table", "physics"):
+        w = s.get(world)
+        if not isinstance(w, dict) or not _is_num(w.get("inner_pct")):
+            raise bad(f"summary.{world}.inner_pct", "a finite number or null")
+    if not isinstance(s.get("gap"), dict) or not _is_num(s["gap"].get("inner_pct_pp")):
+        raise bad("summary.gap.inner_pct_pp", "a finite number or null")
+    for field in ("physics_errors", "starts"):
+        v = s.get(field)
+        if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+            raise bad(f"summary.{field}", f"an integer ≥ 0, got {v!r}")
+    if not _is_num(s.get("wall_s"), none=False) or s["wall_s"] < 0:
+        raise bad("summary.wall_s", f"a finite number of seconds ≥ 0, got {s.get('wall_s')!r}")
+    return doc
+
+
 def _finals(
     folder: Path, result: AnytimeResult, stage: Any, ga: GASettings, ex: Executor,
     on_run: Callable[[], None] | None, *, world: WorldSettings, arena: ArenaSettings,
@@ -277,7 +377,7 @@ def _finals(
         }  # fmt: skip
         path = folder / "final" / f"pop{res.index}.json"
         done = read_json(path, what="final test", error=AnytimeError) if path.exists() else {}
-        if {k: done.get(k) for k in key} != key:
+        if not isinstance(done, dict) or {k: done.get(k) for k in key} != key:
             rep = validate(
                 full, starts, table=result.table, world=world, physics=physics, arena=arena,
                 executor=ex, max_steps=settings.physics_steps, seed=seed, model=model,
@@ -285,14 +385,17 @@ def _finals(
             )  # fmt: skip
             done = key | {"summary": rep["summary"], "runs": rep["runs"]}
             atomic_write_json(path, done)
-        out.append(done)
+        out.append(check_final(done, path))
     return out
 
 
 __all__ = [
     "ANYTIME_FILES",
+    "BASELINE_FIELDS",
     "PunctuationJob",
     "check_anytime",
+    "check_final",
+    "check_summary",
     "measure_run",
     "physics_tester",
     "read_baseline",

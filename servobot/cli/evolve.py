@@ -152,12 +152,15 @@ def ga_settings(args: argparse.Namespace) -> GASettings:
     return ga
 
 
-def load_navigation(path: Path) -> np.ndarray:
-    """The navigation section of ``path`` (``evolve.stages.navigation_section``)."""
+def load_navigation(path: Path, *, given: bool = True) -> np.ndarray:
+    """The navigation section of ``path`` (``evolve.stages.navigation_section``): the file
+    ``--navigation`` names (``given``) or the default ``DIR/navigation/best.txt``."""
     from evolve.codec import read_chromosome
     from evolve.stages import navigation_section
 
     if not path.exists() and not path.is_symlink():
+        if given:
+            raise CliError(f"--navigation {path}: no such file")
         raise CliError(
             f"{path}: no navigation section file; run 'servobot evolve navigation' with the "
             "same --out first, or give --navigation FILE"
@@ -259,7 +262,8 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
             raise CliError("--navigation is an option of the coverage and colony stages")
         _print_navigation(stages.run_navigation(args.out, **kw), args.out)
         return 0
-    navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt")
+    navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt",
+                                 given=args.navigation is not None)  # fmt: skip
     if args.stage == "coverage":
         _print_coverage(stages.run_coverage(args.out, navigation=navigation, **kw), args.out)
     else:

@@ -6,7 +6,8 @@ arguments (argparse exits 2 on a malformed option) and hands the rest to
 
 - runs ``body()`` and returns its exit code (0 done, 1 a run failed, e.g. physics);
 - turns an ``infra.errors.InputError`` (a file, option, output place, run folder or size that
-  cannot be used) into ``prog: error: <message>`` on stderr and exit code 2;
+  cannot be used) into ``prog: error: <message>`` on stderr and exit code 2, removing the
+  output folders the command created and left empty (``infra.io.remove_created_folders``);
 - turns ``MemoryError`` into a message and exit code 2 (the size checks should come first);
 - ends quietly (exit 0) when stdout is a pipe whose reader stopped (``| head``);
 - turns Ctrl-C into ``prog: interrupted; kept: ...; resume with: ...`` and exit code 130,
@@ -31,6 +32,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from infra.errors import InputError
+from infra.io import forget_created_folders, remove_created_folders
 
 EXIT_FAILED = 1
 """A run finished but failed (e.g. physics blew up in some validation runs)."""
@@ -76,12 +78,15 @@ def run_command(
     main = threading.current_thread() is threading.main_thread()
     old_int = signal.getsignal(signal.SIGINT)
     old = signal.signal(signal.SIGTERM, _terminate) if main else None
+    forget_created_folders()
     try:
         return int(body() or 0)
     except InputError as exc:
+        remove_created_folders()  # refused before any work: no empty --out left behind
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except MemoryError:
+        remove_created_folders()
         print(f"{prog}: error: out of memory; choose smaller sizes", file=sys.stderr)
         return EXIT_USAGE
     except BrokenPipeError:  # output piped into e.g. `head`: stop quietly, as Unix tools do

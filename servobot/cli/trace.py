@@ -25,6 +25,7 @@ from typing import TextIO
 from evolve.codec import read_chromosome
 from evolve.interpreter import MODES, StepEvent
 from evolve.settings import WorldSettings
+from evolve.starts import MAX_HEADING_DEG
 from evolve.table import load_table
 from evolve.trace import TEXT_HEADER, event_dict, event_line, summary_line, trace
 from infra.bounds import LIMITS, Need, check_need
@@ -76,8 +77,14 @@ def _check(args: argparse.Namespace, world: WorldSettings, genes: int) -> str:
         raise TraceError(f"--start must be finite numbers, got {args.start}")
     if not (0.0 <= x <= world.arena_size and 0.0 <= y <= world.arena_size):
         raise TraceError(f"--start ({x:g}, {y:g}) lies outside the arena [0, {world.arena_size:g}]")
-    if args.steps is not None and args.steps < 0:
-        raise TraceError(f"--steps must be ≥ 0, got {args.steps}")
+    if abs(h) > MAX_HEADING_DEG:
+        raise TraceError(
+            f"--start heading {h:g} is beyond ±{MAX_HEADING_DEG:g}° (a heading is in degrees, 0 "
+            "= north, clockwise)"
+        )
+    if args.steps is not None and args.steps < 1:
+        raise TraceError(f"--steps must be ≥ 1 (a trace of no step shows nothing), got "
+                         f"{args.steps}")  # fmt: skip
     if args.steps is not None:
         need = Need(args.steps * STEP_BYTES, args.steps / LIMITS.interpreter_steps_per_s)
         check_need(need, f"--steps {args.steps}")

@@ -171,7 +171,7 @@ def _check_options(args: argparse.Namespace, n_starts: int) -> None:
     if args.noise is not None:
         check_number(args.noise, "--noise", lo=0.0, hi=MAX_TARGET_RAD, unit=" rad")
     if args.steps is not None:
-        check_int(args.steps, "--steps", lo=0)
+        check_int(args.steps, "--steps", lo=1)
     if args.station_height is not None:
         check_number(args.station_height, "--station-height", lo=0.01, hi=10.0, unit=" m")
     robots = args.robots or 1
@@ -235,11 +235,17 @@ def prepare(
             starts = colony_starts(rng, count, world, colony)
         except ValueError as exc:
             raise InputError(f"--robots {colony.robots}: {exc}") from exc
-    if colony is None:
-        for k, s in enumerate(starts):
-            check_start(s, world, name=f"start {k} ({s[0]:g} {s[1]:g} {s[2]:g})")
-    else:
-        check_colony_starts(starts, world, ArenaSettings(), colony)
+    try:
+        if colony is None:
+            for k, s in enumerate(starts):
+                check_start(s, world, name=f"start {k} ({s[0]:g} {s[1]:g} {s[2]:g})")
+        else:
+            check_colony_starts(starts, world, ArenaSettings(), colony)
+    except ValidationError as exc:  # name where the poses came from
+        if args.poses is None and not args.start:
+            raise
+        source = f"--poses {args.poses}" if args.poses is not None else "--start"
+        raise ValidationError(f"{source}: {exc}") from None
     return bits, starts, colony, powers
 
 

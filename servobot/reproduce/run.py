@@ -32,6 +32,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+import math
 import os
 import sys
 import time
@@ -283,10 +284,19 @@ class _Pipeline:
                 self.log("[robustness] the matrix's worlds vary the shipped robot; not run for "
                          f"{self.s.model}")  # fmt: skip
                 return {"note": "not run: the matrix's worlds are variants of the shipped robot"}
-            coverage = read_json(self.out / "coverage" / "summary.json", what="coverage summary",
-                                 error=ReproduceError)
+            path = self.out / "coverage" / "summary.json"
+            coverage = read_json(path, what="coverage summary", error=ReproduceError)
+            inner = coverage.get("final_inner_percent") if isinstance(coverage, dict) else None
+            if not (isinstance(inner, list) and inner and all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                    for v in inner)):  # fmt: skip
+                raise ReproduceError(
+                    f"{path}: field final_inner_percent: a list of finite numbers (one per "
+                    "population) expected; the coverage stage's summary was edited or damaged: "
+                    "rerun with --force"
+                )
             finalists = [self.out / "coverage" / f"best_pop{k}.txt"
-                         for k in best_finalists(coverage["final_inner_percent"], n)]  # fmt: skip
+                         for k in best_finalists(inner, n)]  # fmt: skip
             doc = run_matrix(
                 finalists, folder, self.s.robustness(self.out), executor=self.executor,
                 resume=True, on_run=self.on_run, log=self.log,
@@ -475,7 +485,8 @@ def reproduce(
     doc = {"ReproduceSettings": s.to_dict(), **json.loads(settings_json(world))}
     if s.envelope_value() != NONE:  # the envelope's fields, also when named by a file
         doc["Envelope"] = s.envelope_value().to_dict()
-    with run_folder(out, doc, owned=REPRODUCE_FILES, resume=True, force=force):
+    with run_folder(out, doc, owned=REPRODUCE_FILES, resume=True, force=force,
+                    command="reproduce"):
         disk = (
             s.coverage_populations
             * validation_need(s.validate_starts, s.validate_max_steps, workers, True)[1]

@@ -231,8 +231,8 @@ def finished_report(cell: Cell, expected: dict[str, Any]) -> dict[str, Any] | No
             "starts": [r["start"] for r in doc["runs"]],
             "settings": settings,
         }
-    except (ReadError, KeyError, TypeError):
-        return None
+    except (ReadError, KeyError, TypeError, ValueError):
+        return None  # not a report of this cell: it is run again
     return doc if have == expected else None
 
 
@@ -317,7 +317,8 @@ def run_matrix(
     record = settings_record(settings, controllers, worlds, rows, info)
     ex = executor or make_executor(None, workers)
     reports: dict[tuple[str, str], dict[str, Any]] = {}
-    with run_folder(out, record, owned=ROBUSTNESS_FILES, resume=resume, force=force):
+    with run_folder(out, record, owned=ROBUSTNESS_FILES, resume=resume, force=force,
+                    command="robustness"):
         for w in worlds:
             materialise(w, out / MODELS_DIR)
         plans, todo = [], []

@@ -50,7 +50,7 @@ from evolve import geometry
 from evolve.codec import FULL_GENES, SECTION_GENES, check_bits, format_chromosome
 from evolve.interpreter import END_NAMES, run
 from evolve.settings import ColonySettings, WorldSettings
-from evolve.starts import navigation_starts_where
+from evolve.starts import MAX_HEADING_DEG, navigation_starts_where
 from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
 from infra.bounds import LIMITS, Need, check_int, check_need
@@ -133,6 +133,11 @@ def check_start(
         raise ValidationError(msg) from exc
     if not all(np.isfinite([x, y, h])):
         raise ValidationError(f"{name}: start pose ({x}, {y}, {h}) is not finite")
+    if abs(h) > MAX_HEADING_DEG:
+        raise ValidationError(
+            f"{name}: heading {h:g} is beyond ±{MAX_HEADING_DEG:g}° (a heading is in degrees, 0 "
+            "= north, clockwise)"
+        )
     size = world.arena_size
     if not (0.0 <= x <= size and 0.0 <= y <= size):
         raise ValidationError(
@@ -498,7 +503,8 @@ def execute(
         for plan in plans:
             if plan.out is not None:
                 folders.enter_context(run_folder(plan.out, plan.record, owned=VALIDATION_FILES,
-                                                 resumable=False, force=plan.force))  # fmt: skip
+                                                 resumable=False, force=plan.force,
+                                                 command="validate"))  # fmt: skip
                 check_free_space(plan.out, plan.disk, what="the recordings")
         t0 = time.perf_counter()
 
