@@ -83,15 +83,44 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 # (argv with {placeholders}, what the message must name)
+Case = tuple[list[str], str]
+
+
+def _file_cases(*argv: str, what: str, then: tuple[str, ...] = ()) -> list[Case]:
+    """A folder and a binary file as the ``what`` file that ``argv`` ends wanting (then
+    ``then``)."""
+    return [
+        ([*argv, "{dir}", *then], f"a_folder: is a folder, not a {what}"),
+        ([*argv, "{binary}", *then], "binary.bin: holds binary data"),
+    ]
+
+
+def _text_cases(*argv: str, empty: str, then: tuple[str, ...] = ()) -> list[Case]:
+    """An empty file (``empty``: what its message names), Latin-1, UTF-16, a file too large
+    and a device as the text file that ``argv`` ends wanting (then ``then``)."""
+    return [
+        ([*argv, "{empty}", *then], empty),
+        ([*argv, "{latin1}", *then], "latin1.txt: is not UTF-8 text (byte 0xe9"),
+        ([*argv, "{utf16}", *then], "utf16.txt: is UTF-16 text"),
+        ([*argv, "{big}", *then], "big.txt: is 68,157,440 bytes, too large"),
+        ([*argv, "{devnull}", *then], "/dev/null: is not a regular file"),
+    ]
+
+
+def _out_cases(*argv: str) -> list[Case]:
+    """A file and a place under /proc as the ``--out`` folder, after ``argv``."""
+    return [
+        ([*argv, "--out", "{chrom16}"], "is a file, not a folder"),
+        ([*argv, "--out", "/proc/servobot-x"], "/proc/servobot-x: cannot write there"),
+    ]
+
+
+START = ("--start", "250", "250", "0")
+"""A start pose of ``servobot trace``."""
 CASES = {
     "evolve": [
-        (["navigation", "--table", "{dir}"], "is a folder, not a gait-table file"),
-        (["navigation", "--table", "{empty}"], "empty.txt: not valid JSON"),
-        (["navigation", "--table", "{binary}"], "binary.bin: holds binary data"),
-        (["navigation", "--table", "{latin1}"], "latin1.txt: is not UTF-8 text (byte 0xe9"),
-        (["navigation", "--table", "{utf16}"], "utf16.txt: is UTF-16 text"),
-        (["navigation", "--table", "{big}"], "big.txt: is 68,157,440 bytes, too large"),
-        (["navigation", "--table", "{devnull}"], "/dev/null: is not a regular file"),
+        *_file_cases("navigation", "--table", what="gait-table file"),
+        *_text_cases("navigation", "--table", empty="empty.txt: not valid JSON"),
         (["navigation", "--table", "{inf_table}"], "non-finite number Infinity"),
         (["navigation", "--table", "{huge_table}"], "number 1e400 is too large"),
         (["navigation", "--table", "{float_gait}"], "gait must be an integer 0-15, got 2.7"),
@@ -103,11 +132,9 @@ CASES = {
         (["navigation", "--population-size", "1000000000"], "1000000000 individuals"),
         (["navigation", "--generations", "1000000000000000000"], "1000000000000000000 gen"),
         (["navigation", "--seed", "-1"], "--seed must be ≥ 0"),
-        (["navigation", "--out", "{chrom16}"], "is a file, not a folder"),
-        (["navigation", "--out", "/proc/servobot-x"], "/proc/servobot-x: cannot write there"),
+        *_out_cases("navigation"),
         (["navigation", "--out", "{chrom16}/sub"], "c16.txt/sub: cannot write there (Not a"),
-        (["coverage", "--navigation", "{dir}"], "a_folder: is a folder, not a chromosome file"),
-        (["coverage", "--navigation", "{binary}"], "binary.bin: holds binary data"),
+        *_file_cases("coverage", "--navigation", what="chromosome file"),
         (["coverage", "--navigation", "{chrom7}"], "expected 8 or 16 genes, found 7"),
         (["colony", "--robots", "0", "--navigation", "{chrom8}"], "--robots must be an integer"),
         (["navigation", "--robots", "3"], "--robots is an option of the colony stage"),
@@ -115,8 +142,7 @@ CASES = {
     ],
     "anytime": [
         ([], "the following arguments are required: --navigation"),
-        (["--navigation", "{dir}"], "a_folder: is a folder, not a chromosome file"),
-        (["--navigation", "{binary}"], "binary.bin: holds binary data"),
+        *_file_cases("--navigation", what="chromosome file"),
         (["--navigation", "{chrom7}"], "expected 8 or 16 genes, found 7"),
         (["--navigation", "{chrom8}", "--table", "{inf_table}"], "non-finite number Infinity"),
         (["--navigation", "{chrom8}", "--method", "fast"], "argument --method: invalid choice"),
@@ -134,17 +160,11 @@ CASES = {
         (["--navigation", "{chrom8}", "--model", "{dir}"], "--model {dir}: is a folder, not a"),
         (["--navigation", "{chrom8}", "--baseline", "{dir}"], "no such anytime summary"),
         (["--navigation", "{chrom8}", "--baseline", "{bias_run}"], "must be a --method none run"),
-        (["--navigation", "{chrom8}", "--out", "{chrom16}"], "is a file, not a folder"),
-        (["--navigation", "{chrom8}", "--out", "/proc/servobot-x"], "cannot write there"),
+        *_out_cases("--navigation", "{chrom8}"),
     ],
     "trace": [
-        (["{dir}", "--start", "250", "250", "0"], "a_folder: is a folder, not a chromosome"),
-        (["{empty}", "--start", "250", "250", "0"], "expected 8 or 16 genes, found 0"),
-        (["{binary}", "--start", "250", "250", "0"], "binary.bin: holds binary data"),
-        (["{latin1}", "--start", "250", "250", "0"], "latin1.txt: is not UTF-8 text"),
-        (["{utf16}", "--start", "250", "250", "0"], "utf16.txt: is UTF-16 text"),
-        (["{big}", "--start", "250", "250", "0"], "big.txt: is 68,157,440 bytes"),
-        (["{devnull}", "--start", "250", "250", "0"], "is not a regular file"),
+        *_file_cases(what="chromosome file", then=START),
+        *_text_cases(empty="expected 8 or 16 genes, found 0", then=START),
         (["{chrom8}", "--start", "nan", "250", "0"], "--start must be finite"),
         (["{chrom8}", "--start", "250", "250", "1e400"], "--start must be finite"),
         (["{chrom8}", "--start", "250", "250", "0", "--steps", "10000000000000"], "--steps"),
@@ -157,13 +177,11 @@ CASES = {
         ),  # fmt: skip
     ],
     "validate": [
-        (["{dir}"], "a_folder: is a folder, not a chromosome file"),
-        (["{binary}"], "binary.bin: holds binary data"),
+        *_file_cases(what="chromosome file"),
         (["{latin1}"], "latin1.txt: is not UTF-8 text"),
         (["{chrom8}", "--robots", "2"], "needs a full 16-gene chromosome"),
         (["{chrom16}", "--poses", "{chrom16}"], "--poses: only for an 8-gene navigation section"),
-        (["{chrom8}", "--poses", "{dir}"], "a_folder: is a folder, not a poses file"),
-        (["{chrom8}", "--poses", "{binary}"], "binary.bin: holds binary data"),
+        *_file_cases("{chrom8}", "--poses", what="poses file"),
         (["{chrom8}", "--poses", "{chrom8}"], "the header lacks column(s) x, y, h"),
         (["{chrom16}", "--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
         (["{chrom16}", "--seed", "-1", "--start", "400", "250", "90"], "--seed must be"),
@@ -174,8 +192,7 @@ CASES = {
         (["{chrom16}", "--workers", "1000000"], "--workers must be an integer between 1"),
         (["{chrom16}", "--table", "{huge_table}"], "number 1e400 is too large"),
         (["{chrom16}", "--table", "{deep_meta}"], "nested more than 64 deep"),
-        (["{chrom16}", "--out", "{chrom16}"], "is a file, not a folder"),
-        (["{chrom16}", "--out", "/proc/servobot-x"], "cannot write there"),
+        *_out_cases("{chrom16}"),
         (["{chrom16}", "--robots", "0"], "--robots must be an integer ≥ 1, got 0"),
         (["{chrom16}", "--robots", "-3"], "--robots must be an integer ≥ 1, got -3"),
         (["{chrom16}", "--robots", "400"], "--robots 400: cannot place robot"),
@@ -191,8 +208,7 @@ CASES = {
         ),
     ],
     "robustness": [
-        (["{dir}"], "a_folder: is a folder, not a chromosome file"),
-        (["{binary}"], "binary.bin: holds binary data"),
+        *_file_cases(what="chromosome file"),
         (["{chrom16}", "--worlds", "shipped,moon"], "'moon' is neither a built-in world"),
         (["{chrom16}", "--worlds", "{dir}"], "a_folder' is neither a built-in world"),
         (["{chrom16}", "--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
@@ -201,12 +217,10 @@ CASES = {
         (["{chrom16}", "--workers", "1000000"], "--workers must be an integer between 1"),
         (["{chrom16}", "--executor", "cloud"], "executor must be serial"),
         (["{chrom16}", "--table", "{inf_table}"], "non-finite number Infinity"),
-        (["{chrom16}", "--out", "{chrom16}"], "is a file, not a folder"),
-        (["{chrom16}", "--out", "/proc/servobot-x"], "cannot write there"),
+        *_out_cases("{chrom16}"),
     ],
     "calibrate": [
-        (["--params", "{dir}"], "a_folder: is a folder, not a gait-parameter file"),
-        (["--params", "{binary}"], "binary.bin: holds binary data"),
+        *_file_cases("--params", what="gait-parameter file"),
         (["--params", "{inf_table}"], "non-finite number Infinity"),
         (["--params", "{list_json}"], "not a gait-parameter file"),
         (["--params", "{bad_params}"], "params.json: malformed gait-parameter file"),
@@ -215,8 +229,7 @@ CASES = {
         (["--noise", "inf"], "--noise must be a number between 0 and"),
         (["--seed", "-1"], "--seed must be an integer ≥ 0"),
         (["--workers", "1000000"], "--workers must be an integer between 1"),
-        (["--out", "{chrom16}"], "is a file, not a folder"),
-        (["--out", "/proc/servobot-x"], "cannot write there"),
+        *_out_cases(),
         (["--rrd", "{dir}"], "--rrd"),
         (["--fit", "--params-out", "{dir}"], "--params-out"),
     ],
@@ -224,8 +237,7 @@ CASES = {
         (["--seed", "-1"], "--seed must be an integer ≥ 0"),
         (["--workers", "0"], "--workers must be an integer between 1"),
         (["--validate-starts", "1000000000"], "the reproduction's budgets need"),
-        (["--out", "{chrom16}"], "is a file, not a folder"),
-        (["--out", "/proc/servobot-x"], "cannot write there"),
+        *_out_cases(),
         (["--model", "{dir}"], "--model {dir}: is a folder, not a robot model file"),
         (["--envelope", "{list_json}"], "list.json: an envelope is a JSON object"),
         (["--envelope", "{binary}"], "binary.bin"),
@@ -234,8 +246,7 @@ CASES = {
         (["--torso-mass", "-1", "--out", "{dir}/v.xml"], "--torso-mass must be a finite number"),
         (["--leg-length", "nan", "--out", "{dir}/v.xml"], "--leg-length must be a finite number"),
         (["--out", "{dir}"], "--out"),
-        (["--show", "{dir}"], "a_folder: is a folder, not a model file"),
-        (["--show", "{binary}"], "binary.bin: holds binary data"),
+        *_file_cases("--show", what="model file"),
         (["--show", "{chrom16}"], "c16.txt: MuJoCo cannot compile it"),
     ],
     "compare": [
