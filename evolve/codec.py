@@ -43,6 +43,10 @@ OBJECT_LEFT = 2
 LOW_POWER = 4
 LIGHT_RIGHT = 8
 LIGHT_LEFT = 16
+OBJECT_BITS = OBJECT_LEFT | OBJECT_RIGHT
+"""Both object sensors' bits."""
+LIGHT_BITS = LIGHT_LEFT | LIGHT_RIGHT
+"""Both light sensors' bits."""
 TEST_MASKS = (0, 1, 2, 3, 4, 8, 16, 24)
 """Sensor set of tests 0–7: test t is positive iff ``TEST_MASKS[t] & active == TEST_MASKS[t]``."""
 TEST_NAMES = (
@@ -237,6 +241,22 @@ def next_gene(gene: int) -> int:
     return base + (gene - base + 1) % SECTION_GENES
 
 
+def next_pc(gene: int, k: int, rem: int) -> tuple[int, int, int, bool]:
+    """The program counter after instruction ``k`` (0–3) of ``gene`` ran without a taken
+    branch, ``rem`` runs of the gene left (0: forever) (SPEC §4): (gene, k, rem, fresh); when
+    ``fresh`` the gene is new and the caller sets ``rem`` to its loop count. Plain Python on
+    ints, compiled by the numba kernel too (scalars only: an array argument here costs the
+    kernel's loops measurably)."""
+    k += 1
+    if k < 4:
+        return gene, k, rem, False
+    if rem != 0:
+        rem -= 1
+        if rem == 0:
+            return next_gene(gene), 0, rem, True
+    return gene, 0, rem, False
+
+
 def instruction_text(op: int, arg: int, dest: int) -> str:
     """``gait 8`` or ``if light-left goto 5`` (``dest`` the absolute destination gene)."""
     if op == OP_GAIT:
@@ -270,12 +290,14 @@ __all__ = [
     "ChromosomeError",
     "FULL_GENES",
     "GENE_BITS",
+    "LIGHT_BITS",
     "LIGHT_LEFT",
     "LIGHT_RIGHT",
     "LOOP_FOREVER",
     "LOW_POWER",
     "LOW_POWER_TEST",
     "NAVIGATION_BASE",
+    "OBJECT_BITS",
     "OBJECT_LEFT",
     "OBJECT_RIGHT",
     "OP_BRANCH",
@@ -289,6 +311,7 @@ __all__ = [
     "disassemble",
     "format_chromosome",
     "next_gene",
+    "next_pc",
     "parse_chromosome",
     "read_chromosome",
     "sensor_names",

@@ -43,10 +43,12 @@ import numpy as np
 from evolve import geometry as geo
 from evolve.codec import (
     FULL_GENES,
+    LIGHT_BITS,
     LIGHT_LEFT,
     LIGHT_RIGHT,
     LOW_POWER,
     NAVIGATION_BASE,
+    OBJECT_BITS,
     OBJECT_LEFT,
     OBJECT_RIGHT,
     OP_GAIT,
@@ -56,7 +58,7 @@ from evolve.codec import (
     branch_destination,
     check_bits,
     decode,
-    next_gene,
+    next_pc,
 )
 from evolve.settings import ColonySettings, WorldSettings
 from evolve.world import ColonyWorld, RobotView, World
@@ -68,9 +70,6 @@ MODES = ("coverage", "navigation")
 """Run modes: a 16-gene chromosome from gene 0, or an 8-gene navigation section alone."""
 DEFAULT_SETTINGS = WorldSettings()
 DEFAULT_COLONY = ColonySettings()
-
-_OBJECT_BITS = OBJECT_LEFT | OBJECT_RIGHT
-_LIGHT_BITS = LIGHT_LEFT | LIGHT_RIGHT
 
 
 @dataclass(frozen=True)
@@ -175,10 +174,10 @@ class _Run:
         bits = 0
         if mask & LOW_POWER and self.power < self.s.low_power_v:
             bits |= LOW_POWER
-        if mask & _OBJECT_BITS:
+        if mask & OBJECT_BITS:
             left, right = self.world.object_sensors()
             bits |= (OBJECT_LEFT if left else 0) | (OBJECT_RIGHT if right else 0)
-        if mask & _LIGHT_BITS:
+        if mask & LIGHT_BITS:
             left, right = self.world.light_sensors()
             bits |= (LIGHT_LEFT if left else 0) | (LIGHT_RIGHT if right else 0)
         return bits
@@ -186,7 +185,7 @@ class _Run:
     def emit(self, kind, gene, instr, text, gait=-1, mode="coverage", new_square=-1) -> None:
         if self.on_event is None:
             return
-        all_bits = LOW_POWER | _OBJECT_BITS | _LIGHT_BITS
+        all_bits = LOW_POWER | OBJECT_BITS | LIGHT_BITS
         self.on_event(
             StepEvent(
                 kind=kind,
@@ -320,14 +319,9 @@ class _Run:
                     g, k = dest, 0
                     rem = self.loops[g]
                     continue
-            k += 1
-            if k == 4:
-                k = 0
-                if rem != 0:
-                    rem -= 1
-                    if rem == 0:
-                        g = next_gene(g)
-                        rem = self.loops[g]
+            g, k, rem, fresh = next_pc(g, k, rem)
+            if fresh:
+                rem = self.loops[g]
 
     def finish(self, end: int, gene: int, mode: str) -> RunResult:
         """Emit the end event and return the run's result."""

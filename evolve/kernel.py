@@ -7,8 +7,9 @@ the kernels compile the very functions of ``evolve.geometry`` (``register_jitabl
 float formula is the interpreter's, operation for operation, and ``fastmath`` stays off. Only
 the control flow is copied here. Both kernels take a gait cycle with its checks in ``_walk``;
 object sensors (walls, other robots' discs, an envelope's station block) are
-``_object_sense``; the colony moves its program counter with ``_next_pc`` (``run_one`` spells
-that rule out, measured 3 % faster).
+``_object_sense``, and a branch's sensor bits ``_sensed``; the colony moves its program counter
+with ``_next_pc`` (``evolve.codec.next_pc`` compiled; ``run_one`` spells that rule out,
+measured 3 % faster).
 ``tests/test_kernel.py`` and ``tests/test_colony_kernel.py`` prove the kernels equal to the
 interpreter on random, hand-worked and evolved chromosomes.
 
@@ -32,8 +33,8 @@ table worlds call the same. The envelope ``none`` costs a branch per cycle (scat
 no block) and reads the table's own rows: its results are the pre-envelope ones, bit for bit
 (``tests/test_envelope.py`` against stored results).
 
-Constants and the branch and next-gene rules come from ``evolve.codec`` and the end codes
-from ``evolve.interpreter``: the kernel types none of them again.
+Constants and the branch, next-gene and program-counter rules come from ``evolve.codec`` and
+the end codes from ``evolve.interpreter``: the kernel types none of them again.
 
 Note on numba's cache: a cached kernel is invalidated by edits to this file only, not to
 ``geometry.py`` or ``codec.py``; after editing those, delete
@@ -48,16 +49,15 @@ from numba import njit, prange
 from numba.extending import register_jitable
 
 from evolve.codec import (
-    LIGHT_LEFT,
-    LIGHT_RIGHT,
+    LIGHT_BITS,
     LOW_POWER,
     NAVIGATION_BASE,
-    OBJECT_LEFT,
-    OBJECT_RIGHT,
+    OBJECT_BITS,
     OP_GAIT,
     TEST_MASKS,
     branch_destination,
     next_gene,
+    next_pc,
 )
 from evolve.geometry import (
     P_BACKUP_GAIT,
@@ -90,10 +90,10 @@ from evolve.interpreter import (
 )
 from evolve.variation import E_RADIUS, E_SCATTER, E_STOPS, E_X0, E_X1, E_Y0, E_Y1, scattered_row
 
-_OBJECT_MASK = OBJECT_LEFT | OBJECT_RIGHT
-_LIGHT_MASK = LIGHT_LEFT | LIGHT_RIGHT
 _branch_destination = register_jitable(branch_destination)
 _next_gene = register_jitable(next_gene)
+_next_pc = njit(cache=True, inline="always")(next_pc)
+"""``evolve.codec.next_pc`` compiled, inlined where the colony's turn loop calls it."""
 _NO_ROBOTS = np.zeros((0, 3))
 """The other robots of a lone robot: none."""
 
@@ -204,18 +204,29 @@ def _object_sense(x, y, h, p, others, me, radius, reach, block):
 
 
 @njit(cache=True, inline="always")
-def _next_pc(g, k, rem):
-    """The program counter after instruction k of gene g ran without a taken branch (SPEC
-    §4): (g, k, rem, fresh); when ``fresh`` the gene is new and the caller sets rem to its
-    loop count (scalars only: an array argument here costs the loops measurably)."""
-    k += 1
-    if k < 4:
-        return g, k, rem, False
-    if rem != 0:
-        rem -= 1
-        if rem == 0:
-            return _next_gene(g), 0, rem, True
-    return g, 0, rem, False
+def _sensed(mask, x, y, h, power, p, others, me, radius, reach, block, objects, lights):
+    """The active bits of a test's sensor set ``mask`` at pose (x, y, h) with ``power`` volts:
+    (active, objects, lights). ``objects``/``lights``: the pose's object and light bits, −1
+    until a branch reads them; read here only when ``mask`` needs them, so the branches
+    between two steps share them (``_object_sense`` takes ``others`` … ``block``)."""
+    active = LOW_POWER if (mask & LOW_POWER) and power < p[P_LOW] else 0
+    if mask & OBJECT_BITS:
+        if objects < 0:
+            objects = _object_sense(x, y, h, p, others, me, radius, reach, block)
+        active |= objects
+    if mask & LIGHT_BITS:
+        if lights < 0:
+            lights = light_bits(x, y, h, p)
+        active |= lights
+    return active, objects, lights
+
+
+@njit(cache=True, inline="always")
+def _individual_start(idx, n_starts):
+    """(individual, start) of row ``idx`` of a flat batch: row i·S + s is individual i from
+    start s."""
+    i = idx // n_starts
+    return i, idx - i * n_starts
 
 
 # --------------------------------------------------------------------------- one robot
@@ -307,16 +318,10 @@ def run_one(
         else:
             test = arg[g, k]
             mask = TEST_MASKS[test]
-            # each sensor computed once per pose: the branches between two steps share it
-            active = LOW_POWER if (mask & LOW_POWER) and power < p[P_LOW] else 0
-            if mask & _OBJECT_MASK:
-                if seen_objects < 0:
-                    seen_objects = _object_sense(x, y, h, p, _NO_ROBOTS, -1, 0.0, reach, block)
-                active |= seen_objects
-            if mask & _LIGHT_MASK:
-                if seen_lights < 0:
-                    seen_lights = light_bits(x, y, h, p)
-                active |= seen_lights
+            active, seen_objects, seen_lights = _sensed(
+                mask, x, y, h, power, p, _NO_ROBOTS, -1, 0.0, reach, block, seen_objects,
+                seen_lights,
+            )  # fmt: skip
             branches += 1
             if branches >= max_branches:
                 end = END_BRANCH_LIMIT
@@ -353,8 +358,7 @@ def evaluate_flat(
     n_starts = starts.shape[0]
     total = loops.shape[0] * n_starts
     for idx in prange(total):
-        i = idx // n_starts
-        s = idx - i * n_starts
+        i, s = _individual_start(idx, n_starts)
         r = run_one(
             loops[i],
             ops[i],
@@ -526,17 +530,10 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
                 while ops[g, k] != OP_GAIT:
                     test = arg[g, k]
                     mask = TEST_MASKS[test]
-                    active = LOW_POWER if (mask & LOW_POWER) and pw < p[P_LOW] else 0
-                    if mask & _OBJECT_MASK:
-                        if seen_objects < 0:
-                            seen_objects = _object_sense(
-                                x, y, h, p, pose, i, radius, reach[i], block
-                            )
-                        active |= seen_objects
-                    if mask & _LIGHT_MASK:
-                        if seen_lights < 0:
-                            seen_lights = light_bits(x, y, h, p)
-                        active |= seen_lights
+                    active, seen_objects, seen_lights = _sensed(
+                        mask, x, y, h, pw, p, pose, i, radius, reach[i], block, seen_objects,
+                        seen_lights,
+                    )  # fmt: skip
                     branches += 1
                     if branches >= max_branches:
                         end = END_BRANCH_LIMIT
@@ -604,8 +601,7 @@ def evaluate_colony_flat(
     n_starts = starts.shape[0]
     total = loops.shape[0] * n_starts
     for idx in prange(total):
-        i = idx // n_starts
-        s = idx - i * n_starts
+        i, s = _individual_start(idx, n_starts)
         pose[idx] = starts[s]
         run_colony_one(
             (loops[i], ops[i], arg[i], target[i]), nav_run,
