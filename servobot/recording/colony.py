@@ -38,10 +38,14 @@ from servo_mj.robot.gaits import PATTERN
 from servo_mj.robot.settings import PhysicsSettings
 from servobot.recording.columns import ColumnBuffer, Times, scalars, times_of
 from servobot.recording.recording import Recording
-from servobot.recording.runs import result_fields, run_name, validation_properties
+from servobot.recording.runs import (
+    WORLDS,
+    run_fields,
+    run_name,
+    validation_properties,
+    world_fields,
+)
 from servobot.recording.style import RecordingSettings, Rgb
-
-WORLDS = ("table", "physics")
 
 
 def robot_name(i: int) -> str:
@@ -272,19 +276,14 @@ class ColonyRecorder:
 def colony_result_fields(record: dict[str, Any]) -> dict[str, Any]:
     """A colony run's outcome as flat property fields: per world the colony's and each
     robot's numbers, and the error if any."""
-    out: dict[str, Any] = {}
-    for world in WORLDS:
-        res = record.get(world)
-        if not res:
-            continue
-        for key, value in res["colony"].items():
-            out[f"{world}_colony_{key}"] = int(value)
+
+    def fields(world: str, res: dict[str, Any]) -> dict[str, Any]:
+        out = {f"{world}_colony_{key}": int(value) for key, value in res["colony"].items()}
         for i, robot in enumerate(res["robots"]):
-            fields = result_fields({world: robot})
-            out |= {f"{robot_name(i)}_{k}": v for k, v in fields.items()}
-    if record.get("error"):
-        out["error"] = record["error"]
-    return out
+            out |= {f"{robot_name(i)}_{k}": v for k, v in run_fields(world, robot).items()}
+        return out
+
+    return world_fields(record, fields)
 
 
 __all__ = [

@@ -13,7 +13,7 @@ cycle it is part of (the first cycle's frames to step 1); the state after placin
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -202,30 +202,52 @@ def validation_properties(job: Any, physics: PhysicsSettings) -> dict[str, Any]:
     }  # fmt: skip
 
 
-def result_fields(record: dict[str, Any]) -> dict[str, Any]:
-    """A run's outcome as flat property fields: ``record`` maps a world name to its result —
-    a ``servobot.validation.lone`` run record or an ``evolve.interpreter.RunResult`` — and may hold
-    an ``error``."""
+WORLDS = ("table", "physics")
+"""The worlds of a run record, in the order their fields are listed."""
+
+
+def world_fields(
+    record: dict[str, Any], fields: Callable[[str, Any], dict[str, Any]]
+) -> dict[str, Any]:
+    """Flat property fields of a ``record`` that maps a world name (``WORLDS``) to its result
+    and may hold an ``error``: ``fields(world, result)`` of each world that has a result, in
+    ``WORLDS`` order, then the error if any."""
     out: dict[str, Any] = {}
-    for world in ("table", "physics"):
+    for world in WORLDS:
         res = record.get(world)
-        if not res:
-            continue
-        get = res.get if isinstance(res, dict) else lambda k, r=res: getattr(r, k)
-        for key in ("squares", "inner_squares", "docks", "steps"):
-            out[f"{world}_{key}"] = int(get(key))
-        end = get("end")
-        out[f"{world}_end"] = end["name"] if isinstance(end, dict) else END_NAMES[int(end)]
+        if res:
+            out |= fields(world, res)
     if record.get("error"):
         out["error"] = record["error"]
     return out
 
 
+def run_fields(world: str, res: Any) -> dict[str, Any]:
+    """One world's run result as ``{world}_squares`` … ``{world}_end`` (end by name)."""
+    get = res.get if isinstance(res, dict) else lambda k: getattr(res, k)
+    out = {
+        f"{world}_{key}": int(get(key)) for key in ("squares", "inner_squares", "docks", "steps")
+    }
+    end = get("end")
+    out[f"{world}_end"] = end["name"] if isinstance(end, dict) else END_NAMES[int(end)]
+    return out
+
+
+def result_fields(record: dict[str, Any]) -> dict[str, Any]:
+    """A run's outcome as flat property fields: ``record`` maps a world name to its result —
+    a ``servobot.validation.lone`` run record or an ``evolve.interpreter.RunResult`` — and may hold
+    an ``error``."""
+    return world_fields(record, run_fields)
+
+
 __all__ = [
+    "WORLDS",
     "RunRecorder",
     "result_fields",
+    "run_fields",
     "run_name",
     "standing_robot",
     "step_time_s",
     "validation_properties",
+    "world_fields",
 ]
