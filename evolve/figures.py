@@ -334,18 +334,9 @@ def colony_figure10(
     for i, r in enumerate(res.robots):
         label = f"robot {i}: {r.squares} sq, {r.docks} docks, {_end_name(r.end)}"
         draw_colony_robot(ax, i, r.track, label, r.end, colony.disc_radius)
-        robots.append(
-            {"robot": i, **_run_info(r), "collisions": int(r.collisions),
-             "station_waits": int(r.station_waits)}
-        )  # fmt: skip
-    info = {
-        "squares": int(res.squares),
-        "inner_squares": int(res.inner_squares),
-        "colony_steps": int(res.colony_steps),
-        "collisions": int(res.collisions),
-        "station_waits": int(res.station_waits),
-        "robots": robots,
-    }
+        robots.append({"robot": i, **_run_info(r), **_counts(r, "collisions", "station_waits")})
+    info = _counts(res, "squares", "inner_squares", "colony_steps", "collisions", "station_waits")
+    info["robots"] = robots
     ax.set_title(
         f"Figure 10 {title}: a colony of {len(robots)} — {info['squares']} squares "
         f"({info['inner_squares']} inner), {info['station_waits']} station waits, "
@@ -361,15 +352,14 @@ def _end_name(end: Any) -> str:
     return END_NAMES[int(end)] if isinstance(end, int | np.integer) else str(end)
 
 
+def _counts(res: Any, *names: str) -> dict[str, Any]:
+    """``{name: int(res.name)}`` for each of ``names``, in that order."""
+    return {name: int(getattr(res, name)) for name in names}
+
+
 def _run_info(res: Any) -> dict[str, Any]:
     """A run's ``{squares, inner_squares, docks, steps, end}`` (end by name)."""
-    return {
-        "squares": int(res.squares),
-        "inner_squares": int(res.inner_squares),
-        "docks": int(res.docks),
-        "steps": int(res.steps),
-        "end": _end_name(res.end),
-    }
+    return _counts(res, "squares", "inner_squares", "docks", "steps") | {"end": _end_name(res.end)}
 
 
 def figure10(
