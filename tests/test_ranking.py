@@ -15,16 +15,7 @@ from evolve.evaluation import evaluate
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
 from evolve.table import PAPER_TABLE
-from servobot.robustness import cross
-from servobot.robustness.ranking import (
-    Genome,
-    RankingError,
-    agreement,
-    generation_bests,
-    seen,
-    table_runs,
-    top_genomes,
-)
+from servobot.robustness import cross, ranking
 
 RNG = np.random.default_rng(11)
 SIZE = 20
@@ -55,7 +46,7 @@ def _run_folder(tmp_path: Path) -> tuple[Path, dict[int, np.ndarray]]:
 
 def test_top_genomes_come_from_the_top_fraction_distinct_best_first(tmp_path: Path) -> None:
     run, finals = _run_folder(tmp_path)
-    genomes = top_genomes(run, per_population=3, fraction=0.2)  # top 4 of 20 → 3 distinct
+    genomes = ranking.top_genomes(run, per_population=3, fraction=0.2)  # top 4 of 20 → 3 distinct
     assert [g.label for g in genomes][:1] == ["p0g7r0"]
     pop0 = [g.bits[:8] for g in genomes if g.label.startswith("p0")]
     expect = [finals[0][19], finals[0][17], finals[0][16]]  # 18 is 19's twin: skipped
@@ -68,40 +59,40 @@ def test_top_genomes_come_from_the_top_fraction_distinct_best_first(tmp_path: Pa
 
 def test_generation_bests_one_per_saved_generation(tmp_path: Path) -> None:
     run, _ = _run_folder(tmp_path)
-    assert [g.label for g in generation_bests(run)] == [
+    assert [g.label for g in ranking.generation_bests(run)] == [
         "p0g0best", "p0g7best", "p1g0best", "p1g7best",
     ]  # fmt: skip
 
 
 def test_a_folder_without_what_it_needs_names_the_file(tmp_path: Path) -> None:
-    with pytest.raises(RankingError, match="best_pop0.txt: missing"):
-        top_genomes(tmp_path, 2)
+    with pytest.raises(ranking.RankingError, match="best_pop0.txt: missing"):
+        ranking.top_genomes(tmp_path, 2)
     run, _ = _run_folder(tmp_path)
     for f in (run / "coverage" / "populations").iterdir():
         f.unlink()
-    with pytest.raises(RankingError, match="no saved populations"):
-        top_genomes(run, 2)
+    with pytest.raises(ranking.RankingError, match="no saved populations"):
+        ranking.top_genomes(run, 2)
 
 
 def test_agreement_hand_worked() -> None:
     table = np.array([[10.0, 12.0], [20.0, 20.0], [30.0, 34.0]])
     physics = np.array([[9.0, 9.0], [25.0, 21.0], [20.0, 24.0]])
-    a = agreement(table, physics)
+    a = ranking.agreement(table, physics)
     # means: table 11, 20, 32; physics 9, 23, 22 → ranks (1,2,3) vs (1,3,2): ρ = 1 − 6·2/24
     assert a["spearman"] == pytest.approx(0.5)
     assert a["mean_abs_delta"] == pytest.approx((1 + 3 + 5 + 1 + 10 + 10) / 6)
     assert a["table_mean"] == pytest.approx(21.0) and a["physics_mean"] == pytest.approx(18.0)
-    flat = agreement(np.ones((3, 2)), physics)
+    flat = ranking.agreement(np.ones((3, 2)), physics)
     assert math.isnan(flat["spearman"])
 
 
 def test_table_runs_none_is_one_exact_run_and_an_envelope_the_mean_of_its_draws() -> None:
     bits = RNG.integers(0, 2, (3, 16, 30), dtype=np.uint8)
-    genomes = [Genome(str(k), b) for k, b in enumerate(bits)]
+    genomes = [ranking.Genome(str(k), b) for k, b in enumerate(bits)]
     starts = coverage_starts(np.random.default_rng(1), 4, WorldSettings())
     exact = evaluate(bits, starts, table=PAPER_TABLE, mode="coverage").inner_squares
-    assert np.array_equal(table_runs(genomes, starts, table=PAPER_TABLE), exact)
-    got = table_runs(genomes, starts, table=PAPER_TABLE, envelope=DEFAULT, seed=3, draws=3)
+    assert np.array_equal(ranking.table_runs(genomes, starts, table=PAPER_TABLE), exact)
+    got = ranking.table_runs(genomes, starts, table=PAPER_TABLE, envelope=DEFAULT, seed=3, draws=3)
     from evolve.envelope import key_of_test
 
     draws = [evaluate(bits, starts, table=PAPER_TABLE, mode="coverage", envelope=DEFAULT,
@@ -111,9 +102,9 @@ def test_table_runs_none_is_one_exact_run_and_an_envelope_the_mean_of_its_draws(
 
 
 def test_seen_forces_the_block() -> None:
-    assert seen(DEFAULT, True).station_seen_p == 1.0
-    assert seen(DEFAULT, False).station_seen_p == 0.0
-    assert seen(NONE, False) == NONE
+    assert ranking.seen(DEFAULT, True).station_seen_p == 1.0
+    assert ranking.seen(DEFAULT, False).station_seen_p == 0.0
+    assert ranking.seen(NONE, False) == NONE
 
 
 def test_cross_prints_every_world_for_every_run(tmp_path: Path, capsys) -> None:
