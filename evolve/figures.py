@@ -143,17 +143,32 @@ def _save(fig: Any, path: Path) -> Path:
     return out
 
 
+def _arena_plot(world: WorldSettings, reached: frozenset[int] = frozenset()) -> tuple[Any, Any]:
+    """(figure, axes) of a square arena plot: the arena of ``world`` with ``reached`` squares."""
+    fig, ax = plt.subplots(figsize=(6.2, 6.2))
+    draw_arena(ax, world, reached=reached)
+    return fig, ax
+
+
+def _save_arena(
+    fig: Any, ax: Any, path: str | Path, title: str, *, title_size: float = 9,
+    legend_size: float = 7,
+) -> Path:  # fmt: skip
+    """Title an arena plot (font sizes in points), put its legend in the upper left (over the
+    dark area) and save it at ``path``."""
+    ax.set_title(title, fontsize=title_size)
+    ax.legend(loc="upper left", fontsize=legend_size, framealpha=0.9)
+    return _save(fig, Path(path))
+
+
 def figure8(path: str | Path, world: WorldSettings = geometry.DEFAULT_WORLD) -> Path:
     """Figure 8: the arena alone, as a PNG at ``path``."""
-    fig, ax = plt.subplots(figsize=(6.2, 6.2))
-    draw_arena(ax, world)
-    ax.set_title(
+    fig, ax = _arena_plot(world)
+    title = (
         "Figure 8: colony arena — squares (contact zones), kill zone, station,\n"
-        "lights and the dark area outside both lit cones",
-        fontsize=9,
+        "lights and the dark area outside both lit cones"
     )
-    ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
-    return _save(fig, Path(path))
+    return _save_arena(fig, ax, path, title)
 
 
 def figure9(
@@ -197,17 +212,14 @@ def docking_map(
 ) -> Path:
     """Where a navigation section docks from: each start pose (S, 3) a dot over the arena,
     coloured by how its run ended (``ends``: end codes, ``END_NAMES``)."""
-    fig, ax = plt.subplots(figsize=(6.2, 6.2))
-    draw_arena(ax, world)
+    fig, ax = _arena_plot(world)
     ends = np.asarray(ends)
     for code, name in enumerate(END_NAMES):
         mine = ends == code
         if mine.any():
             ax.scatter(starts[mine, 0], starts[mine, 1], s=7, color=END_COLOURS[name],
                        label=f"{name}: {mine.mean():.1%}", zorder=5)  # fmt: skip
-    ax.set_title(title, fontsize=9)
-    ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
-    return _save(fig, Path(path))
+    return _save_arena(fig, ax, path, title)
 
 
 def figure_anytime(
@@ -328,8 +340,7 @@ def colony_figure10(
     colour per robot, over the arena with the colony's squares; each robot's final disc, an
     × on robots that ended early. Returns the colony's and each robot's numbers."""
     res = run_colony_track(chromosome, table=table, world=world, colony=colony, starts=starts)
-    fig, ax = plt.subplots(figsize=(6.2, 6.2))
-    draw_arena(ax, world, reached=frozenset(res.reached))
+    fig, ax = _arena_plot(world, frozenset(res.reached))
     robots = []
     for i, r in enumerate(res.robots):
         label = f"robot {i}: {r.squares} sq, {r.docks} docks, {_end_name(r.end)}"
@@ -337,14 +348,12 @@ def colony_figure10(
         robots.append({"robot": i, **_run_info(r), **_counts(r, "collisions", "station_waits")})
     info = _counts(res, "squares", "inner_squares", "colony_steps", "collisions", "station_waits")
     info["robots"] = robots
-    ax.set_title(
+    text = (
         f"Figure 10 {title}: a colony of {len(robots)} — {info['squares']} squares "
         f"({info['inner_squares']} inner), {info['station_waits']} station waits, "
-        f"{info['collisions']} blocked moves",
-        fontsize=8,
+        f"{info['collisions']} blocked moves"
     )
-    ax.legend(loc="upper left", fontsize=6.5, framealpha=0.9)
-    _save(fig, Path(path))
+    _save_arena(fig, ax, path, text, title_size=8, legend_size=6.5)
     return info
 
 
@@ -374,18 +383,15 @@ def figure10(
     """Figure 10: the track of a 16-gene ``chromosome`` from ``start`` over the arena, with
     the squares it reached. Returns ``{squares, inner_squares, docks, steps, end}``."""
     res = run_track(chromosome, table=table, world=world, start=start)
-    fig, ax = plt.subplots(figsize=(6.2, 6.2))
-    draw_arena(ax, world, reached=frozenset(res.reached))
+    fig, ax = _arena_plot(world, frozenset(res.reached))
     _draw_track(ax, res.track, "tab:blue", "track", "tab:green", "tab:red", start[2])
     info = _run_info(res)
-    ax.set_title(
+    text = (
         f"Figure 10 {title}: from ({start[0]:g}, {start[1]:g}, {start[2]:g}°) — "
         f"{info['squares']} squares ({info['inner_squares']} inner), "
-        f"{info['docks']} docks, {info['steps']} steps, end: {info['end']}",
-        fontsize=8,
+        f"{info['docks']} docks, {info['steps']} steps, end: {info['end']}"
     )
-    ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
-    _save(fig, Path(path))
+    _save_arena(fig, ax, path, text, title_size=8)
     return info
 
 
