@@ -97,26 +97,27 @@ class ReproduceSettings:
             model=self.model,
         )
 
+    def _ga(self, base: GASettings, populations: int, size: int, generations: int) -> GASettings:
+        """``base`` (a stage's GA settings) with the stage's budget — ``populations`` of
+        ``size`` individuals over ``generations`` — and the shared test starts and seed."""
+        return dataclasses.replace(
+            base, populations=populations, population_size=size, generations=generations,
+            test_starts=self.test_starts, seed=self.seed,
+        )  # fmt: skip
+
     def navigation_ga(self) -> GASettings:
         """GA settings of the navigation stage."""
-        return navigation_ga_settings(
-            populations=self.navigation_populations,
-            population_size=self.navigation_population_size,
-            generations=self.navigation_generations,
-            test_starts=self.test_starts,
-            seed=self.seed,
-        )
+        return self._ga(
+            navigation_ga_settings(), self.navigation_populations,
+            self.navigation_population_size, self.navigation_generations,
+        )  # fmt: skip
 
     def coverage_ga(self) -> GASettings:
         """GA settings of the coverage stage."""
-        return dataclasses.replace(
-            GASettings(),
-            populations=self.coverage_populations,
-            population_size=self.coverage_population_size,
-            generations=self.coverage_generations,
-            test_starts=self.test_starts,
-            seed=self.seed,
-        )
+        return self._ga(
+            GASettings(), self.coverage_populations, self.coverage_population_size,
+            self.coverage_generations,
+        )  # fmt: skip
 
     def envelope_value(self) -> Envelope:
         """The ``Envelope`` of ``envelope`` (``EnvelopeError`` naming a bad file)."""
