@@ -33,6 +33,7 @@ from servobot.cli.evolve import ga_settings, load_navigation, run_evolution
 from servobot.cli.options import (
     add_envelope_option,
     add_executor_option,
+    add_ga_options,
     add_model_option,
     envelope_from_args,
     executor_from_args,
@@ -67,10 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
     ):
         default = getattr(DEFAULTS, field)
         p.add_argument(flag, type=int, default=default, help=f"{what} (default {default})")
-    p.add_argument("--populations", type=int, default=None, help="populations (default 5)")
-    p.add_argument("--generations", type=int, default=None, help="generations (default 512)")
-    p.add_argument("--population-size", type=int, default=None, help="individuals (256)")
-    p.add_argument("--seed", type=int, default=None, help="seed of every random draw (0)")
+    add_ga_options(p, "512")
     add_model_option(p, "robot model file in physics (default: the shipped ServoBot); a --table "
                      "PATH must have been calibrated on it")  # fmt: skip
     p.add_argument("--baseline", type=Path, default=None, metavar="DIR",

@@ -42,6 +42,7 @@ from infra.io import check_output_dir
 from servobot.cli.options import (
     add_envelope_option,
     add_executor_option,
+    add_ga_options,
     envelope_from_args,
     executor_from_args,
 )
@@ -66,19 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
         "colony (coverage learned by a colony of robots sharing the station).",
     )
     p.add_argument("stage", choices=("navigation", "coverage", "colony"), help="which stage to run")
-    p.add_argument(
-        "--populations", type=int, default=None, help="independent populations (default 5)"
-    )
-    p.add_argument(
-        "--generations",
-        type=int,
-        default=None,
-        help="generations (default 1024 for navigation, 512 for coverage and colony)",
-    )
-    p.add_argument(
-        "--population-size", type=int, default=None, help="individuals per population (256)"
-    )
-    p.add_argument("--seed", type=int, default=None, help="seed of every random draw (0)")
+    add_ga_options(p, "1024 for navigation, 512 for coverage and colony")
     p.add_argument(
         "--table", default="paper", help="gait table: 'paper' (Figure 4) or a calibration JSON"
     )

@@ -1,6 +1,6 @@
 """Options that several subcommands share: ``--executor`` of those that run batches
 (``infra.executors``), ``--model`` of those that walk a robot model in physics, ``--envelope``
-(``evolve.envelope``) of those that evolve."""
+(``evolve.envelope``) of those that evolve, and their GA budget (``add_ga_options``)."""
 
 from __future__ import annotations
 
@@ -104,3 +104,16 @@ def add_envelope_option(p: argparse.ArgumentParser) -> None:
 def envelope_from_args(args: argparse.Namespace) -> Envelope:
     """The ``Envelope`` of ``--envelope`` (an ``EnvelopeError``, exit 2, names a bad one)."""
     return load_envelope(args.envelope)
+
+
+def add_ga_options(p: argparse.ArgumentParser, generations: str) -> None:
+    """Add the options ``servobot.cli.evolve.ga_settings`` reads, each None = the stage's default:
+    ``--populations``, ``--generations`` (its default described by ``generations``),
+    ``--population-size`` and ``--seed``."""
+    for flag, what in (
+        ("--populations", "independent populations (default 5)"),
+        ("--generations", f"generations (default {generations})"),
+        ("--population-size", "individuals per population (256)"),
+        ("--seed", "seed of every random draw (0)"),
+    ):
+        p.add_argument(flag, type=int, default=None, help=what)
