@@ -20,16 +20,18 @@ from __future__ import annotations
 import functools
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from evolve.codec import write_chromosome
 from evolve.envelope import NONE, Envelope
 from evolve.interpreter import END_NAMES
-from evolve.population import OnGeneration, Stage, StageError, save_generations
+from evolve.population import Stage, StageError, save_generations
 from evolve.settings import ColonySettings, GASettings, WorldSettings
 from evolve.stages import (
+    StageOptions,
+    StageRun,
     _check_navigation,
     _provenance,
     _run_populations,
@@ -39,11 +41,13 @@ from evolve.stages import (
     envelope_figure9,
     figure9_both,
     figure9_summary,
+    write_summary,
 )
 from evolve.starts import CAPACITY_REHEARSALS, colony_capacity, colony_starts
 from evolve.table import GaitTable
-from infra.executors import Executor
-from infra.io import atomic_write_json
+
+if TYPE_CHECKING:  # typing.Unpack from Python 3.11 on
+    from typing_extensions import Unpack
 
 FIGURE10_SEED = 10
 """Seed of the one colony start (R poses from ``colony_starts``) of every population's
@@ -100,11 +104,7 @@ def run_colony_stage(
     ga: GASettings = DEFAULT_GA,
     world: WorldSettings = DEFAULT_WORLD,
     colony: ColonySettings = DEFAULT_COLONY,
-    resume: bool = False,
-    force: bool = False,
-    on_generation: OnGeneration | None = None,
-    executor: Executor | None = None,
-    envelope: Envelope = NONE,
+    **options: Unpack[StageOptions],
 ) -> dict[str, Any]:
     """Colony stage (SPEC §7) into ``out/colony``; returns the summary (also
     ``summary.json``). ``executor``: where the populations evolve, and ``resume``/``force``
@@ -123,24 +123,22 @@ def run_colony_stage(
     ``envelope_final_*``, ``envelope``); ``final_test`` and Figure 10 stay in the world of §3.
     """
     folder = Path(out) / "colony"
-    stage = colony_stage(world, colony, navigation, envelope)
-    with _stage_folder(stage, folder, table, ga, world, resume, force) as doc:
-        return _colony(stage, folder, doc, table, ga, world, colony, resume, on_generation,
-                       executor)  # fmt: skip
+    run = StageRun(**options)
+    stage = colony_stage(world, colony, navigation, run.envelope)
+    with _stage_folder(stage, folder, table, ga, world, run.resume, run.force) as doc:
+        return _colony(stage, folder, doc, table, ga, world, colony, run)
 
 
 def _colony(
     stage: Stage, folder: Path, doc: dict[str, Any], table: GaitTable, ga: GASettings,
-    world: WorldSettings, colony: ColonySettings, resume: bool,
-    on_generation: OnGeneration | None, executor: Executor | None,
+    world: WorldSettings, colony: ColonySettings, run: StageRun,
 ) -> dict[str, Any]:  # fmt: skip
     from evolve import figures
 
     t0 = time.perf_counter()
     results, test_starts = _run_populations(
-        stage, folder, doc, table=table, ga=ga, world=world, resume=resume,
-        on_generation=on_generation, executor=executor,
-    )  # fmt: skip
+        stage, folder, doc, table=table, ga=ga, world=world, run=run
+    )
     gens = save_generations(ga)
     fig9 = figure9_both(folder, stage, table, world, gens, ga.populations, test_starts, ga.seed)
     inner = fig9[""][0]
@@ -179,12 +177,8 @@ def _colony(
         "figure10_starts": start.tolist(),
         "figure10": fig10,
         "test_starts": len(test_starts),
-        "wall_s": time.perf_counter() - t0,
-        "resumed": bool(resume),
-        "settings": doc,
-    } | envelope_figure9(stage, fig9)
-    atomic_write_json(folder / "summary.json", summary)
-    return summary
+    }
+    return write_summary(folder, summary, t0, run, doc, envelope_figure9(stage, fig9))
 
 
 def final_test(

@@ -41,7 +41,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
@@ -81,6 +81,9 @@ from infra.executors import BatchError, Executor, Failed, RayExecutor, values_or
 from infra.io import atomic_write_json, atomic_write_text
 from infra.rundir import run_folder
 
+if TYPE_CHECKING:  # typing.Unpack from Python 3.11 on
+    from typing_extensions import Unpack
+
 FIGURE10_START = (415.0, 252.0, 98.0)
 """Start pose (x, y, heading) of the Figure 10 tracks [paper]."""
 DEFAULT_WORLD = WorldSettings()
@@ -99,6 +102,35 @@ STAGE_FILES = (
 """Every file a stage writes in its folder besides ``settings.json``: what ``force`` deletes."""
 RUN_RESULT_BYTES = 64
 """Memory of one run's results in an evaluation (5 int64 + 3 float64), bytes."""
+
+
+class StageOptions(TypedDict, total=False):
+    """The keywords every stage runner takes beside what it evolves (``run_navigation``,
+    ``run_coverage``, ``evolve.colony_stage.run_colony_stage``); ``StageRun`` holds them
+    with their defaults and meanings."""
+
+    resume: bool
+    force: bool
+    on_generation: OnGeneration | None
+    executor: Executor | None
+    envelope: Envelope
+
+
+@dataclasses.dataclass(frozen=True)
+class StageRun:
+    """How a stage runs (``StageOptions``, with their defaults)."""
+
+    resume: bool = False
+    """Continue the run in the stage's folder from its checkpoints (same settings only)."""
+    force: bool = False
+    """The folder holds another run: delete that run's files (``STAGE_FILES``), start afresh."""
+    on_generation: OnGeneration | None = None
+    """Hears each generation's record (progress)."""
+    executor: Executor | None = None
+    """Where the populations evolve: None = one after another in this process."""
+    envelope: Envelope = NONE
+    """The envelope of variation the populations evolve in (SPEC §9)."""
+
 
 # --------------------------------------------------------------------------- fitness
 
@@ -260,28 +292,26 @@ def _run_populations(
     table: GaitTable,
     ga: GASettings,
     world: WorldSettings,
-    resume: bool,
-    on_generation: OnGeneration | None,
-    executor: Executor | None = None,
+    run: StageRun,
 ) -> tuple[list[PopulationResult], np.ndarray]:
-    """Evolve all populations of a stage in its (claimed) folder; returns (results, test
-    starts)."""
+    """Evolve all populations of a stage in its (claimed) folder as ``run`` says; returns
+    (results, test starts)."""
     settings_text = json.dumps(doc, sort_keys=True)
     test_seq, pop_seqs = stage_seeds(ga.seed, stage.name, ga.populations)
     kwargs = [
         dict(seed_seq=pop_seqs[k], table=table, ga=ga, world=world,
-             settings_text=settings_text, resume=resume)
+             settings_text=settings_text, resume=run.resume)
         for k in range(ga.populations)
     ]  # fmt: skip
-    if executor is None:
+    if run.executor is None:
         results = [
-            evolve_population(k, stage, folder, on_generation=on_generation, **kwargs[k])
+            evolve_population(k, stage, folder, on_generation=run.on_generation, **kwargs[k])
             for k in range(ga.populations)
         ]
     else:
-        threads = _kernel_threads(executor)
+        threads = _kernel_threads(run.executor)
         jobs = [PopulationJob(k, stage, folder, kwargs[k], threads) for k in range(ga.populations)]
-        results = _populations_on(executor, jobs, on_generation)
+        results = _populations_on(run.executor, jobs, run.on_generation)
     test_rng = np.random.Generator(np.random.PCG64(test_seq))
     test_starts = stage.starts(test_rng, ga.test_starts, world)
     return results, test_starts
@@ -327,13 +357,11 @@ def run_navigation(
     ga: GASettings | None = None,
     world: WorldSettings = DEFAULT_WORLD,
     navigation: NavigationSettings = DEFAULT_NAVIGATION,
-    resume: bool = False,
-    force: bool = False,
-    on_generation: OnGeneration | None = None,
-    executor: Executor | None = None,
-    envelope: Envelope = NONE,
+    **options: Unpack[StageOptions],
 ) -> dict[str, Any]:
     """Navigation stage (SPEC §6) into ``out/navigation``; returns the summary dict.
+    ``options``: how it runs (``StageRun``: ``resume``, ``force``, ``on_generation``,
+    ``executor``, ``envelope``), as for every stage.
 
     The populations evolve one after another in this process (the numba kernel uses every
     core), or each as one run of ``executor`` (``infra.executors``; progress then arrives
@@ -357,20 +385,33 @@ def run_navigation(
     (and ``envelope_dock_rate``, ``envelope_test_fitness`` per population) give the same
     test starts in the envelope (key ``key_of_test(seed, "docking")``).
     """
+    run = StageRun(**options)
     ga = navigation_ga_settings() if ga is None else ga
-    stage = navigation_stage(world, navigation, ga.generations, envelope)
+    stage = navigation_stage(world, navigation, ga.generations, run.envelope)
     folder = Path(out) / "navigation"
-    with _stage_folder(stage, folder, table, ga, world, resume, force) as doc:
+    with _stage_folder(stage, folder, table, ga, world, run.resume, run.force) as doc:
         t0 = time.perf_counter()
         results, test_starts = _run_populations(
-            stage, folder, doc, table=table, ga=ga, world=world, resume=resume,
-            on_generation=on_generation, executor=executor,
-        )  # fmt: skip
+            stage, folder, doc, table=table, ga=ga, world=world, run=run
+        )
         summary = _navigation_summary(stage, folder, results, test_starts, table, ga, world,
                                       navigation)  # fmt: skip
-        summary |= {"wall_s": time.perf_counter() - t0, "resumed": bool(resume), "settings": doc}
-        atomic_write_json(folder / "summary.json", summary)
-        return summary
+        return write_summary(folder, summary, t0, run, doc)
+
+
+def write_summary(
+    folder: Path, summary: dict[str, Any], t0: float, run: StageRun, doc: dict[str, Any],
+    after: dict[str, Any] | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """``summary`` with the keys that end every stage's summary — ``wall_s`` (seconds since
+    ``perf_counter`` read ``t0``), ``resumed``, ``settings`` (``doc``) — and then ``after``,
+    written as ``folder/summary.json``; returns it."""
+    summary = summary | {
+        "wall_s": time.perf_counter() - t0, "resumed": bool(run.resume), "settings": doc,
+    }  # fmt: skip
+    summary |= after or {}
+    atomic_write_json(folder / "summary.json", summary)
+    return summary
 
 
 def choose_section(dock_rate: np.ndarray, fitness: np.ndarray, criterion: str) -> int:
@@ -543,11 +584,7 @@ def run_coverage(
     table: GaitTable,
     ga: GASettings = DEFAULT_GA,
     world: WorldSettings = DEFAULT_WORLD,
-    resume: bool = False,
-    force: bool = False,
-    on_generation: OnGeneration | None = None,
-    executor: Executor | None = None,
-    envelope: Envelope = NONE,
+    **options: Unpack[StageOptions],
 ) -> dict[str, Any]:
     """Coverage stage (SPEC §5) into ``out/coverage`` with Figures 8–10; returns the summary.
     ``executor``: where the populations evolve, as in ``run_navigation``.
@@ -567,25 +604,23 @@ def run_coverage(
     fields); hand-offs and Figure 10 stay in the world of §3.
     """
     out = Path(out)
-    stage = coverage_stage(world, navigation, envelope)
-    with _stage_folder(stage, out / "coverage", table, ga, world, resume, force) as doc:
-        return _coverage(stage, out, doc, table, ga, world, resume, on_generation, executor)
+    run = StageRun(**options)
+    stage = coverage_stage(world, navigation, run.envelope)
+    with _stage_folder(stage, out / "coverage", table, ga, world, run.resume, run.force) as doc:
+        return _coverage(stage, out, doc, table, ga, world, run)
 
 
 def _coverage(
     stage: Stage, out: Path, doc: dict[str, Any], table: GaitTable, ga: GASettings,
-    world: WorldSettings, resume: bool, on_generation: OnGeneration | None,
-    executor: Executor | None,
+    world: WorldSettings, run: StageRun,
 ) -> dict[str, Any]:  # fmt: skip
     from evolve import figures
 
     t0 = time.perf_counter()
     folder = out / "coverage"
     results, test_starts = _run_populations(
-        stage, folder, doc, table=table, ga=ga, world=world, resume=resume,
-        on_generation=on_generation,
-        executor=executor,
-    )  # fmt: skip
+        stage, folder, doc, table=table, ga=ga, world=world, run=run
+    )
     gens = save_generations(ga)
     fig9 = figure9_both(folder, stage, table, world, gens, ga.populations, test_starts, ga.seed)
     inner = fig9[""][0]
@@ -626,12 +661,8 @@ def _coverage(
             ],
         },
         "test_starts": len(test_starts),
-        "wall_s": time.perf_counter() - t0,
-        "resumed": bool(resume),
-        "settings": doc,
-    } | envelope_figure9(stage, fig9)
-    atomic_write_json(folder / "summary.json", summary)
-    return summary
+    }
+    return write_summary(folder, summary, t0, run, doc, envelope_figure9(stage, fig9))
 
 
 def figure9_summary(fig9: tuple[np.ndarray, np.ndarray], prefix: str = "") -> dict[str, Any]:
