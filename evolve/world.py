@@ -54,6 +54,22 @@ class World(Protocol):
         ...
 
 
+def _robot_runs(
+    table: np.ndarray, world: WorldSettings | None, envelope: Envelope,
+    envelope_key: tuple[int, ...], start: int, radius: float, robots: int,
+) -> tuple[np.ndarray, WorldSettings, tuple, list[RobotRun]]:  # fmt: skip
+    """What a table world's robots run on: the checked (16, 3) gait ``table``, the world
+    (None: ``WorldSettings()``), packed (``geometry.packed_tuple``), and the ``envelope``
+    draws of each of ``robots`` robots (discs of ``radius`` units) at start index ``start``
+    of the draws of ``envelope_key``, one seen or unseen station block for all."""
+    values = validate_table(getattr(table, "values", table))
+    world = WorldSettings() if world is None else world
+    p = geometry.packed_tuple(world)
+    var = variation_for(envelope, table, world, envelope_key, radius)
+    seen = var is not None and var.station_seen(start)
+    return values, world, p, [RobotRun(var, values, p, start, i, seen) for i in range(robots)]
+
+
 class TableWorld:
     """The table simulation's world: gait cycles apply rows of a (16, 3) gait table (SPEC §1);
     sensors are the exact geometric rules of SPEC §3 (``evolve.geometry``).
@@ -77,12 +93,9 @@ class TableWorld:
         envelope_key: tuple[int, ...] = (0, 0),
         start: int = 0,
     ) -> None:
-        self.table = validate_table(getattr(table, "values", table))
-        self.world = WorldSettings() if world is None else world
-        self._p = geometry.packed_tuple(self.world)
-        var = variation_for(envelope, table, self.world, envelope_key, ROBOT_RADIUS)
-        seen = var is not None and var.station_seen(start)
-        self._run = RobotRun(var, self.table, self._p, start, 0, seen)
+        self.table, self.world, self._p, (self._run,) = _robot_runs(
+            table, world, envelope, envelope_key, start, ROBOT_RADIUS, 1
+        )
         self._x = float(x)
         self._y = float(y)
         self._h = geometry.wrap360(float(h))
@@ -184,18 +197,15 @@ class TableColony:
         envelope_key: tuple[int, ...] = (0, 0),
         start: int = 0,
     ) -> None:
-        self.table = validate_table(getattr(table, "values", table))
-        self.world = WorldSettings() if world is None else world
         self.colony = ColonySettings() if colony is None else colony
         arr = np.asarray(starts, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
             raise ValueError(f"starts must be (R, 3) of x, y, heading, got {arr.shape}")
-        self._p = geometry.packed_tuple(self.world)
         self._radius = float(self.colony.disc_radius)
         self._min_dist = float(self.colony.min_distance)
-        var = variation_for(envelope, table, self.world, envelope_key, self._radius)
-        seen = var is not None and var.station_seen(start)
-        self._runs = [RobotRun(var, self.table, self._p, start, i, seen) for i in range(len(arr))]
+        self.table, self.world, self._p, self._runs = _robot_runs(
+            table, world, envelope, envelope_key, start, self._radius, len(arr)
+        )
         self._poses = [(float(x), float(y), geometry.wrap360(float(h))) for x, y, h in arr]
 
     @property
