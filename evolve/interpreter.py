@@ -59,6 +59,7 @@ from evolve.codec import (
     check_bits,
     decode,
     next_pc,
+    sensor_test_positive,
 )
 from evolve.settings import ColonySettings, WorldSettings
 from evolve.world import ColonyWorld, RobotView, World
@@ -306,8 +307,7 @@ class _Run:
                 yield g, mode
             else:
                 test = self.arg[g][k]
-                mask = TEST_MASKS[test]
-                positive = (self.active(mask) & mask) == mask
+                positive = sensor_test_positive(test, self.active(TEST_MASKS[test]))
                 dest = branch_destination(g, test, self.target[g][k], n)
                 self.branches += 1
                 verdict = "taken" if positive else "not taken"

@@ -7,7 +7,7 @@ the kernels compile the very functions of ``evolve.geometry`` (``register_jitabl
 float formula is the interpreter's, operation for operation, and ``fastmath`` stays off. Only
 the control flow is copied here. Both kernels take a gait cycle with its checks in ``_walk``;
 object sensors (walls, other robots' discs, an envelope's station block) are
-``_object_sense``, and a branch's sensor bits ``_sensed``; the colony moves its program counter
+``_object_sense``, and a branch's test ``_branch_test``; the colony moves its program counter
 with ``_next_pc`` (``evolve.codec.next_pc`` compiled; ``run_one`` spells that rule out,
 measured 3 % faster).
 ``tests/test_kernel.py`` and ``tests/test_colony_kernel.py`` prove the kernels equal to the
@@ -58,6 +58,7 @@ from evolve.codec import (
     branch_destination,
     next_gene,
     next_pc,
+    sensor_test_positive,
 )
 from evolve.geometry import (
     P_BACKUP_GAIT,
@@ -92,6 +93,7 @@ from evolve.variation import E_RADIUS, E_SCATTER, E_STOPS, E_X0, E_X1, E_Y0, E_Y
 
 _branch_destination = register_jitable(branch_destination)
 _next_gene = register_jitable(next_gene)
+_sensor_test_positive = register_jitable(sensor_test_positive)
 _next_pc = njit(cache=True, inline="always")(next_pc)
 """``evolve.codec.next_pc`` compiled, inlined where the colony's turn loop calls it."""
 _NO_ROBOTS = np.zeros((0, 3))
@@ -204,11 +206,12 @@ def _object_sense(x, y, h, p, others, me, radius, reach, block):
 
 
 @njit(cache=True, inline="always")
-def _sensed(mask, x, y, h, power, p, others, me, radius, reach, block, objects, lights):
-    """The active bits of a test's sensor set ``mask`` at pose (x, y, h) with ``power`` volts:
-    (active, objects, lights). ``objects``/``lights``: the pose's object and light bits, −1
-    until a branch reads them; read here only when ``mask`` needs them, so the branches
+def _branch_test(test, objects, lights, x, y, h, power, p, others, me, radius, reach, block):
+    """Whether sensor test ``test`` (0–7) is positive at pose (x, y, h) with ``power`` volts:
+    (positive, objects, lights). ``objects``/``lights``: the pose's object and light bits, −1
+    until a branch reads them; read here only when the test needs them, so the branches
     between two steps share them (``_object_sense`` takes ``others`` … ``block``)."""
+    mask = TEST_MASKS[test]
     active = LOW_POWER if (mask & LOW_POWER) and power < p[P_LOW] else 0
     if mask & OBJECT_BITS:
         if objects < 0:
@@ -218,7 +221,7 @@ def _sensed(mask, x, y, h, power, p, others, me, radius, reach, block, objects, 
         if lights < 0:
             lights = light_bits(x, y, h, p)
         active |= lights
-    return active, objects, lights
+    return _sensor_test_positive(test, active), objects, lights
 
 
 @njit(cache=True, inline="always")
@@ -317,16 +320,14 @@ def run_one(
                 break
         else:
             test = arg[g, k]
-            mask = TEST_MASKS[test]
-            active, seen_objects, seen_lights = _sensed(
-                mask, x, y, h, power, p, _NO_ROBOTS, -1, 0.0, reach, block, seen_objects,
-                seen_lights,
-            )  # fmt: skip
+            positive, seen_objects, seen_lights = _branch_test(
+                test, seen_objects, seen_lights, x, y, h, power, p, _NO_ROBOTS, -1, 0.0, reach,
+                block)  # fmt: skip
             branches += 1
             if branches >= max_branches:
                 end = END_BRANCH_LIMIT
                 break
-            if (active & mask) == mask:
+            if positive:
                 g = _branch_destination(g, test, target[g, k], n_genes)
                 k = 0
                 rem = loops[g]
@@ -529,16 +530,14 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
                 seen_lights = -1
                 while ops[g, k] != OP_GAIT:
                     test = arg[g, k]
-                    mask = TEST_MASKS[test]
-                    active, seen_objects, seen_lights = _sensed(
-                        mask, x, y, h, pw, p, pose, i, radius, reach[i], block, seen_objects,
-                        seen_lights,
-                    )  # fmt: skip
+                    positive, seen_objects, seen_lights = _branch_test(
+                        test, seen_objects, seen_lights, x, y, h, pw, p, pose, i, radius,
+                        reach[i], block)  # fmt: skip
                     branches += 1
                     if branches >= max_branches:
                         end = END_BRANCH_LIMIT
                         break
-                    if (active & mask) == mask:
+                    if positive:
                         g = _branch_destination(g, test, target[g, k], loops.shape[0])
                         k = 0
                         rem = loops[g]
