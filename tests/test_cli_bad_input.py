@@ -107,6 +107,20 @@ def _text_cases(*argv: str, empty: str, then: tuple[str, ...] = ()) -> list[Case
     ]
 
 
+OUT_OF_RANGE = {
+    "--seed": ("-1", "--seed must be an integer ≥ 0, got -1"),
+    "--starts": ("1000000000", "--starts 1000000000"),
+    "--steps": ("1000000000000", "--steps 1000000000000"),
+    "--workers": ("1000000", "--workers must be an integer between 1"),
+}
+"""A value out of range of each option several commands share, and what its message names."""
+
+
+def _range_cases(*argv: str, options: tuple[str, ...]) -> list[Case]:
+    """Each of ``options`` out of range (``OUT_OF_RANGE``) after ``argv``."""
+    return [([*argv, o, OUT_OF_RANGE[o][0]], OUT_OF_RANGE[o][1]) for o in options]
+
+
 def _out_cases(*argv: str) -> list[Case]:
     """A file and a place under /proc as the ``--out`` folder, after ``argv``."""
     return [
@@ -155,7 +169,7 @@ CASES = {
         (["--navigation", "{chrom8}", "--populations", "1000000000"], "1000000000 populations"),
         (["--navigation", "{chrom8}", "--generations", "0"], "--generations must be ≥ 1"),
         (["--navigation", "{chrom8}", "--seed", "-1"], "--seed must be ≥ 0"),
-        (["--navigation", "{chrom8}", "--workers", "1000000"], "--workers must be an integer"),
+        *_range_cases("--navigation", "{chrom8}", options=("--workers",)),
         (["--navigation", "{chrom8}", "--executor", "cloud"], "executor must be serial"),
         (["--navigation", "{chrom8}", "--model", "{dir}"], "--model {dir}: is a folder, not a"),
         (["--navigation", "{chrom8}", "--baseline", "{dir}"], "no such anytime summary"),
@@ -183,13 +197,10 @@ CASES = {
         (["{chrom16}", "--poses", "{chrom16}"], "--poses: only for an 8-gene navigation section"),
         *_file_cases("{chrom8}", "--poses", what="poses file"),
         (["{chrom8}", "--poses", "{chrom8}"], "the header lacks column(s) x, y, h"),
-        (["{chrom16}", "--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
+        *_range_cases("{chrom16}", options=("--seed", "--starts", "--steps", "--workers")),
         (["{chrom16}", "--seed", "-1", "--start", "400", "250", "90"], "--seed must be"),
-        (["{chrom16}", "--starts", "1000000000"], "--starts 1000000000"),
-        (["{chrom16}", "--steps", "1000000000000"], "--steps 1000000000000"),
         (["{chrom16}", "--noise", "1e300"], "--noise must be a number between 0 and"),
         (["{chrom16}", "--noise", "nan"], "--noise must be a number between 0 and"),
-        (["{chrom16}", "--workers", "1000000"], "--workers must be an integer between 1"),
         (["{chrom16}", "--table", "{huge_table}"], "number 1e400 is too large"),
         (["{chrom16}", "--table", "{deep_meta}"], "nested more than 64 deep"),
         *_out_cases("{chrom16}"),
@@ -211,10 +222,7 @@ CASES = {
         *_file_cases(what="chromosome file"),
         (["{chrom16}", "--worlds", "shipped,moon"], "'moon' is neither a built-in world"),
         (["{chrom16}", "--worlds", "{dir}"], "a_folder' is neither a built-in world"),
-        (["{chrom16}", "--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
-        (["{chrom16}", "--starts", "1000000000"], "--starts 1000000000"),
-        (["{chrom16}", "--steps", "1000000000000"], "--steps 1000000000000"),
-        (["{chrom16}", "--workers", "1000000"], "--workers must be an integer between 1"),
+        *_range_cases("{chrom16}", options=("--seed", "--starts", "--steps", "--workers")),
         (["{chrom16}", "--executor", "cloud"], "executor must be serial"),
         (["{chrom16}", "--table", "{inf_table}"], "non-finite number Infinity"),
         *_out_cases("{chrom16}"),
@@ -227,14 +235,13 @@ CASES = {
         (["--cycles", "1000000000"], "would run for at least"),
         (["--fit", "--fit-evals", "1000000000"], "would run for at least"),
         (["--noise", "inf"], "--noise must be a number between 0 and"),
-        (["--seed", "-1"], "--seed must be an integer ≥ 0"),
-        (["--workers", "1000000"], "--workers must be an integer between 1"),
+        *_range_cases(options=("--seed", "--workers")),
         *_out_cases(),
         (["--rrd", "{dir}"], "--rrd"),
         (["--fit", "--params-out", "{dir}"], "--params-out"),
     ],
     "reproduce": [
-        (["--seed", "-1"], "--seed must be an integer ≥ 0"),
+        *_range_cases(options=("--seed",)),
         (["--workers", "0"], "--workers must be an integer between 1"),
         (["--validate-starts", "1000000000"], "the reproduction's budgets need"),
         *_out_cases(),
