@@ -121,6 +121,21 @@ def _range_cases(*argv: str, options: tuple[str, ...]) -> list[Case]:
     return [([*argv, o, OUT_OF_RANGE[o][0]], OUT_OF_RANGE[o][1]) for o in options]
 
 
+GA_CASES: list[Case] = [
+    (["--populations", "1000000000"], "1000000000 populations"),
+    (["--population-size", "1000000000"], "1000000000 individuals"),
+    (["--generations", "1000000000000000000"], "1000000000000000000 gen"),
+    (["--generations", "0"], "--generations must be ≥ 1"),
+    (["--seed", "-1"], "--seed must be ≥ 0"),
+]
+"""The GA budget options out of range (``servobot.cli.options.add_ga_options``)."""
+
+
+def _ga_cases(*argv: str) -> list[Case]:
+    """``GA_CASES`` after ``argv``: for every command that evolves (``ga_settings``)."""
+    return [([*argv, *bad], message) for bad, message in GA_CASES]
+
+
 def _out_cases(*argv: str) -> list[Case]:
     """A file and a place under /proc as the ``--out`` folder, after ``argv``."""
     return [
@@ -142,10 +157,7 @@ CASES = {
         (["navigation", "--table", "{string_F}"], "F must be a number, got '11.6'"),
         (["navigation", "--table", "{list_json}"], "not a gait-table file"),
         (["navigation", "--table", "{deep_json}"], "deep.json: not a valid gait-table file"),
-        (["navigation", "--populations", "1000000000"], "1000000000 populations"),
-        (["navigation", "--population-size", "1000000000"], "1000000000 individuals"),
-        (["navigation", "--generations", "1000000000000000000"], "1000000000000000000 gen"),
-        (["navigation", "--seed", "-1"], "--seed must be ≥ 0"),
+        *_ga_cases("navigation"),
         *_out_cases("navigation"),
         (["navigation", "--out", "{chrom16}/sub"], "c16.txt/sub: cannot write there (Not a"),
         *_file_cases("coverage", "--navigation", what="chromosome file"),
@@ -166,9 +178,7 @@ CASES = {
         (["--navigation", "{chrom8}", "--physics-steps", "0"], "--physics-steps must be an"),
         (["--navigation", "{chrom8}", "--final-starts", "0"], "--final-starts must be an"),
         (["--navigation", "{chrom8}", "--physics-steps", "1000000000000"], "physics runs"),
-        (["--navigation", "{chrom8}", "--populations", "1000000000"], "1000000000 populations"),
-        (["--navigation", "{chrom8}", "--generations", "0"], "--generations must be ≥ 1"),
-        (["--navigation", "{chrom8}", "--seed", "-1"], "--seed must be ≥ 0"),
+        *_ga_cases("--navigation", "{chrom8}"),
         *_range_cases("--navigation", "{chrom8}", options=("--workers",)),
         (["--navigation", "{chrom8}", "--executor", "cloud"], "executor must be serial"),
         (["--navigation", "{chrom8}", "--model", "{dir}"], "--model {dir}: is a folder, not a"),
