@@ -8,7 +8,10 @@ no traceback, a message naming the option or file, and nothing written or change
 from __future__ import annotations
 
 import json
+import shutil
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -29,6 +32,19 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str]:
 def _bytes(folder: Path) -> dict[Path, bytes]:
     """Every file under ``folder`` (the lock aside) and its bytes."""
     return {p: p.read_bytes() for p in folder.rglob("*") if p.is_file() and p.name != ".lock"}
+
+
+def _edited_copy(
+    run: Path, out: Path, name: str, edit: Callable[[Any], object]
+) -> tuple[Path, Any]:
+    """Copy the run folder ``run`` to ``out`` and put its JSON file ``name`` through ``edit``;
+    returns (that file, its edited document)."""
+    shutil.copytree(run, out)
+    path = out / name
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    return path, doc
 
 
 def _refused(argv: list[str], capsys: pytest.CaptureFixture, *names: str) -> str:
@@ -240,14 +256,8 @@ def test_anytime_baseline_of_other_settings_is_refused(runs, nav, tmp_path, caps
 def test_anytime_malformed_baseline_is_refused_before_work(
     runs, nav, tmp_path, capsys, edit, field
 ):
-    import shutil
-
     base = tmp_path / "base"
-    shutil.copytree(runs["none"], base)
-    path = base / "anytime" / "summary.json"
-    doc = json.loads(path.read_text())
-    edit(doc)
-    path.write_text(json.dumps(doc))
+    path, _ = _edited_copy(runs["none"], base, "anytime/summary.json", edit)
     argv = _anytime(nav, tmp_path / "out", "--baseline", str(base))
     _refused(argv, capsys, str(path), f"field {field}")
     assert not (tmp_path / "out").exists()
@@ -282,14 +292,8 @@ RECORD_EDITS = [
 def test_anytime_resume_names_the_record_and_field_that_fail(
     runs, nav, tmp_path, capsys, edit, field
 ):
-    import shutil
-
     out = tmp_path / "run"
-    shutil.copytree(runs["bias"], out)
-    path = out / "anytime" / "punctuations" / "gen0002.json"
-    rec = json.loads(path.read_text())
-    edit(rec)
-    path.write_text(json.dumps(rec))
+    path, _ = _edited_copy(runs["bias"], out, "anytime/punctuations/gen0002.json", edit)
     before = _bytes(out)
     _refused([*_anytime(nav, out, "--method", "bias"), "--resume"], capsys, str(path), field)
     assert _bytes(out) == before
@@ -310,21 +314,13 @@ FINAL_EDITS = [
 
 @pytest.mark.parametrize(("edit", "field"), FINAL_EDITS)
 def test_anytime_resume_names_a_broken_final_test(runs, nav, tmp_path, capsys, edit, field):
-    import shutil
-
     out = tmp_path / "run"
-    shutil.copytree(runs["bias"], out)
-    path = out / "anytime" / "final" / "pop0.json"
-    doc = json.loads(path.read_text())
-    edit(doc)
-    path.write_text(json.dumps(doc))
+    path, doc = _edited_copy(runs["bias"], out, "anytime/final/pop0.json", edit)
     _refused([*_anytime(nav, out, "--method", "bias"), "--resume"], capsys, str(path), field)
     assert json.loads(path.read_text()) == doc
 
 
 def test_anytime_resume_measures_a_final_test_of_other_genomes_again(runs, nav, tmp_path, capsys):
-    import shutil
-
     out = tmp_path / "run"
     shutil.copytree(runs["bias"], out)
     path = out / "anytime" / "final" / "pop0.json"
