@@ -99,6 +99,9 @@ class Envelope:
             if v < 0.0:
                 raise EnvelopeError(f"{name} must be ≥ 0, got {v!r}")
             object.__setattr__(self, name, float(v))
+        d = self.draws_per_start
+        if isinstance(d, bool) or not isinstance(d, int) or d < 1:
+            raise EnvelopeError(f"draws_per_start must be an integer ≥ 1, got {d!r}")
         if self.warmup_fraction >= 1.0:
             raise EnvelopeError(f"warmup_fraction must be in [0, 1), got {self.warmup_fraction!r}")
         if self.station_seen_p > 1.0:
@@ -114,6 +117,13 @@ class Envelope:
     variation (Harvey, Husbands & Cliff 1994; Nolfi & Floreano 2000). 0: the envelope from
     generation 0. In [0, 1)."""
 
+    draws_per_start: int = 1
+    """[chosen] Training draws per start: each of a generation's start poses runs this many
+    times, each with its own draws of the envelope, and its run fitness is their mean. A run in
+    an envelope samples a random outcome; more draws make an individual's fitness a better
+    estimate of its expectation, for proportionally more runs. Draw d of generation g is keyed
+    (seed, g) for d = 0 (so 1 is the envelope as before) and (seed, g, d) otherwise. ≥ 1."""
+
     @property
     def varies_motion(self) -> bool:
         """Whether gait rows vary (scatter or bias): σ is needed."""
@@ -121,8 +131,13 @@ class Envelope:
 
     @property
     def varies(self) -> bool:
-        """Whether any aspect is on (else the world of §3; the warm-up is no aspect)."""
-        return dataclasses.replace(self, warmup_fraction=0.0) != NONE
+        """Whether any aspect is on (else the world of §3; how training samples it is none)."""
+        return dataclasses.replace(self, warmup_fraction=0.0, draws_per_start=1) != NONE
+
+    def training_keys(self, seed: int, generation: int) -> list[tuple[int, ...]]:
+        """The draw keys of a generation's training runs, one per draw per start."""
+        n = self.draws_per_start if self.varies else 1
+        return [(seed, generation)] + [(seed, generation, d) for d in range(1, n)]
 
     def warmup_generations(self, generations: int) -> int:
         """Generations of a stage of ``generations`` that train in the world of §3."""

@@ -309,12 +309,17 @@ class PopulationRun:
         stage = self.stage
         if self.generation < stage.envelope.warmup_generations(self.ga.generations):
             stage = dataclasses.replace(stage, envelope=NONE)
-        run_fit, ev, first, inverse = evaluate_sections(
-            self.pop, starts, stage, self.table, self.world, (self.ga.seed, self.generation)
-        )
-        docked = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == END_DOCKED)
+        fits, docked = [], []
+        for key in stage.envelope.training_keys(self.ga.seed, self.generation):
+            run_fit, ev, first, inverse = evaluate_sections(
+                self.pop, starts, stage, self.table, self.world, key
+            )
+            fits.append(run_fit)
+            docks = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == END_DOCKED)
+            docked.append(docks[inverse])
+        run_fit = fits[0] if len(fits) == 1 else np.mean(fits, axis=0)
         self._pending = Generation(
-            starts, run_fit.mean(axis=1), float(docked[inverse].mean()), len(first)
+            starts, run_fit.mean(axis=1), float(np.mean(docked)), len(first)
         )
         return self._pending
 

@@ -42,6 +42,7 @@ from evolve.envelope import (
 )
 from evolve.geometry import block_bits, pack_world, wrap180
 from evolve.interpreter import END_KILL_ZONE, END_POWER_EMPTY, run, run_colony
+from evolve.population import PopulationRun, evaluate_sections
 from evolve.settings import ColonySettings, GASettings
 from evolve.table import PAPER_TABLE, load_table, table_to_json
 from evolve.variation import STREAM_SCATTER, Variation, scattered_row
@@ -558,3 +559,26 @@ def test_warmup_trains_the_first_generations_in_the_exact_world(tmp_path):
     assert warm[9] != exact[9]  # same population at 9, scored in the envelope from then on
     with pytest.raises(EnvelopeError, match="warmup_fraction"):
         Envelope(warmup_fraction=1.0)
+
+
+def test_draws_per_start_average_the_draws_of_each_start(tmp_path):
+    # Two draws per start: generation 0's fitness is the mean of the runs under key (seed, 0)
+    # and key (seed, 0, 1) from the same starts; one draw is the envelope as before.
+    twice = dataclasses.replace(LOUD, draws_per_start=2)
+    assert twice.training_keys(5, 0) == [(5, 0), (5, 0, 1)]
+    assert LOUD.training_keys(5, 3) == [(5, 3)] and NONE.training_keys(5, 3) == [(5, 3)]
+    assert dataclasses.replace(NONE, draws_per_start=3).training_keys(5, 3) == [(5, 3)]
+    ga = dataclasses.replace(TINY, populations=1, generations=1, save_generations=(0, 1))
+    nav = parse_chromosome(LIGHT_FOLLOWER)
+    stage = stages.coverage_stage(WORLD, nav)
+    run = PopulationRun(0, dataclasses.replace(stage, envelope=twice), tmp_path,
+                        seed_seq=np.random.SeedSequence(3), table=load_table("paper"), ga=ga,
+                        world=WORLD, settings_text="{}", resume=False)  # fmt: skip
+    got = run.evaluate()
+    per_key = [evaluate_sections(run.pop, got.starts, dataclasses.replace(stage, envelope=LOUD),
+                                 load_table("paper"), WORLD, key)[0]
+               for key in ((ga.seed, 0), (ga.seed, 0, 1))]  # fmt: skip
+    assert not np.array_equal(per_key[0], per_key[1])
+    np.testing.assert_array_equal(got.fitness, ((per_key[0] + per_key[1]) / 2).mean(axis=1))
+    with pytest.raises(EnvelopeError, match="draws_per_start"):
+        Envelope(draws_per_start=0)

@@ -31,7 +31,7 @@ TINY = ReproduceSettings(
     navigation_populations=1, navigation_population_size=6, navigation_generations=2,
     coverage_populations=2, coverage_population_size=6, coverage_generations=2, test_starts=4,
     validate_starts=2, validate_max_steps=6, validate_navigation_starts=2, robustness_starts=1,
-    robustness_finalists=2, seed=3,
+    robustness_steps=5, robustness_finalists=2, seed=3,
 )  # fmt: skip
 """Smaller than --quick: seconds, but every stage and file of a full run."""
 
@@ -135,7 +135,7 @@ def test_robustness_stage_runs_every_finalist_in_every_world(run_dir: tuple[Path
     assert [w["name"] for w in doc["worlds"]] == list(BUILT_IN)
     names = [c["name"] for c in doc["table_per_chromosome"]]
     assert names == [f"best_pop{k}" for k in range(TINY.coverage_populations)]
-    assert (doc["starts"], doc["steps"], doc["seed"]) == (1, TINY.validate_max_steps, TINY.seed)
+    assert (doc["starts"], doc["steps"], doc["seed"]) == (1, TINY.robustness_steps, TINY.seed)
     assert doc["table"]["source"] == str(out / "calibration" / "gait_table.json")
     assert set(res["stages"]["robustness"]["worlds"]) == set(BUILT_IN)
     text = (out / "REPORT.md").read_text()
@@ -239,7 +239,8 @@ def test_settings_keys_and_presets() -> None:
     assert (full.robustness_finalists, quick.robustness_finalists) == (5, 1)
     assert "robustness_finalists" in stage_key(full, "robustness")
     assert dataclasses.replace(full, coverage_populations=2).matrix_finalists() == 2
-    assert quick.validate_max_steps == full.robustness(Path("d")).steps == 600
+    assert full.validate_max_steps == full.robustness(Path("d")).steps == 600
+    assert quick.robustness(Path("d")).steps == quick.robustness_steps == 300
 
 
 def test_the_matrix_runs_the_best_finalists_first() -> None:

@@ -159,7 +159,7 @@ def reproduce_need(s: ReproduceSettings, world: WorldSettings, workers: int | No
         need += validation_need(n, world.navigation_steps, workers, False)[0]
     if s.model is None:
         for _ in range(s.matrix_finalists() * len(ROBUSTNESS_WORLDS)):
-            need += validation_need(s.robustness_starts, s.validate_max_steps, workers, False)[0]
+            need += validation_need(s.robustness_starts, s.robustness_steps, workers, False)[0]
     return need
 
 

@@ -61,13 +61,15 @@ class ReproduceSettings:
     robustness_starts: int = 2
     """Start poses per finalist per physics world in the robustness stage (the physics test
     matrix, SPEC §9: coverage finalists × every built-in world of
-    ``servobot.robustness.worlds``, ``validate_max_steps`` steps, the table world beside).
+    ``servobot.robustness.worlds``, ``robustness_steps`` steps, the table world beside).
     Default 2: 2 × 6 worlds × 5 finalists = 60 physics runs, 10 per world. Budget: the whole
     reproduction within 1.3 × its wall time without the stage (issue 16), ≈ 30 % more physics
     than the validation stage's 100 coverage + 50 navigation runs: the matrix's runs go to
     the workers as one batch (``servobot.validation.lone.execute``), so it costs its runs'
     CPU time over the workers, and the heavy, weak and slippery robots' runs end early
     (docs/robustness.md, "Why 2 starts")."""
+    robustness_steps: int = 600
+    """Steps of a robustness run (SPEC §5: 600, as the validation's)."""
     robustness_finalists: int = 5
     """How many coverage finalists the robustness stage runs (at most ``coverage_populations``),
     the best first by their Figure 9 test at the last generation (``coverage/summary.json``
@@ -125,12 +127,12 @@ class ReproduceSettings:
 
     def robustness(self, out: Path) -> RobustnessSettings:
         """Settings of the robustness stage's matrix into ``out/robustness``: every built-in
-        world, ``robustness_starts`` starts of ``validate_max_steps`` steps, the run's seed, the
+        world, ``robustness_starts`` starts of ``robustness_steps`` steps, the run's seed, the
         calibrated table ``out/calibration/gait_table.json``, no recordings."""
         return RobustnessSettings(
             worlds=ROBUSTNESS_WORLDS,
             starts=self.robustness_starts,
-            steps=self.validate_max_steps,
+            steps=self.robustness_steps,
             seed=self.seed,
             table=str(Path(out) / "calibration" / TABLE_FILE),
             rrd=False,
@@ -144,8 +146,9 @@ def quick_settings(**overrides: Any) -> ReproduceSettings:
     """A first look in a few minutes on 2 cores: the paper's 5 populations but of 64
     individuals, 256 navigation and 128 coverage generations, 5 calibration cycles, and 3
     full-length (600-step) validation starts per finalist, so that docking and recharging
-    show in physics, 5 + 5 navigation runs, and a robustness matrix of 1 full-length start
-    of the best finalist per world (6 runs)."""
+    show in physics, 5 + 5 navigation runs, and a robustness matrix of 1 start of 300 steps
+    of the best finalist per world (6 runs, ≈ 30 % of the validation's physics steps: 1.3 ×
+    the wall time without the matrix was the budget)."""
     base = ReproduceSettings(
         calibration_cycles=5,
         navigation_population_size=64,
@@ -156,6 +159,7 @@ def quick_settings(**overrides: Any) -> ReproduceSettings:
         validate_navigation_starts=5,
         robustness_starts=1,
         robustness_finalists=1,
+        robustness_steps=300,
     )
     return dataclasses.replace(base, **overrides)
 
@@ -170,7 +174,7 @@ _STAGE_FIELDS: dict[str, tuple[str, ...]] = {
     ),
     "coverage": ("coverage_populations", "coverage_population_size", "coverage_generations"),
     "validation": ("validate_starts", "validate_max_steps", "validate_navigation_starts"),
-    "robustness": ("robustness_starts", "robustness_finalists"),
+    "robustness": ("robustness_starts", "robustness_steps", "robustness_finalists"),
 }
 _ENVELOPE_STAGES = STAGES[STAGES.index("navigation") :]
 """The stages an envelope affects: navigation, coverage and those after them."""
