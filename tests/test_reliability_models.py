@@ -54,35 +54,36 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, floa
     return code, capsys.readouterr().err, time.monotonic() - t0
 
 
+MODEL_TEXTS = {
+    "chrom8": ("c8.txt", GENE * 8),
+    "chrom16": ("c16.txt", GENE * 16),
+    "html": ("page.xml", "<!DOCTYPE html>\n<html><body>x</body></html>"),
+    "no_actuators": ("bare.xml", '<mujoco><worldbody><geom name="floor" type="plane" '
+                                 'size="1 1 0.1"/></worldbody></mujoco>'),
+    "system_include": ("passwd.xml", '<mujoco><include file="/etc/passwd"/></mujoco>'),
+    "missing_include": ("dangling.xml", '<mujoco><include file="gone.xml"/></mujoco>'),
+    "not_xml": ("not_xml.xml", "<mujoco><worldbody></mujoco>"),
+}  # fmt: skip
+"""Input files by kind: (file name, text)."""
+
+
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Every kind of bad model file (``MODEL_TEXTS``, a folder, ``/dev/null``, 70 MB, binary,
+    missing) and two chromosomes."""
     d = tmp_path_factory.mktemp("models")
-    f = {
-        "chrom8": d / "c8.txt",
-        "chrom16": d / "c16.txt",
-        "html": d / "page.xml",
-        "no_actuators": d / "bare.xml",
-        "system_include": d / "passwd.xml",
-        "missing_include": d / "dangling.xml",
-        "folder": d / "a_folder",
-        "devnull": Path("/dev/null"),
-        "big": d / "big.xml",
-        "binary": d / "binary.xml",
-        "missing": d / "missing.xml",
-        "not_xml": d / "not_xml.xml",
-    }
-    f["chrom8"].write_text(GENE * 8)
-    f["chrom16"].write_text(GENE * 16)
-    f["html"].write_text("<!DOCTYPE html>\n<html><body>x</body></html>")
-    f["no_actuators"].write_text('<mujoco><worldbody><geom name="floor" type="plane" '
-                                 'size="1 1 0.1"/></worldbody></mujoco>')  # fmt: skip
-    f["system_include"].write_text('<mujoco><include file="/etc/passwd"/></mujoco>')
-    f["missing_include"].write_text('<mujoco><include file="gone.xml"/></mujoco>')
+    f = {kind: d / name for kind, (name, _) in MODEL_TEXTS.items()}
+    for kind, (_, text) in MODEL_TEXTS.items():
+        f[kind].write_text(text)
+    f["folder"] = d / "a_folder"
     f["folder"].mkdir()
+    f["devnull"] = Path("/dev/null")
+    f["big"] = d / "big.xml"
     with open(f["big"], "wb") as fh:  # sparse: 70 MB on paper, nothing on disk
         fh.truncate(70 * 2**20)
+    f["binary"] = d / "binary.xml"
     f["binary"].write_bytes(bytes(range(256)) * 8)
-    f["not_xml"].write_text("<mujoco><worldbody></mujoco>")
+    f["missing"] = d / "missing.xml"
     return f
 
 
