@@ -223,15 +223,18 @@ def evaluate_colony(
     least two disc radii apart). Every robot of a run carries the same chromosome and starts
     with ``start_power``; ``max_steps`` bounds each robot's gait steps (default as
     ``evaluate``). Other arguments as ``evaluate``; robot r of start s draws with (key, s, r),
-    the station block is the run's (robot 0's draw). Equal to ``evolve.interpreter.run_colony``
-    with a ``TableColony``, run by run; with R = 1 equal to ``evaluate``.
+    the station block is the run's (robot 0's draw); ``colony.blocking`` says whether another
+    robot cancels a blocked move or slides it along the contact tangent. Equal to
+    ``evolve.interpreter.run_colony`` with a ``TableColony``, run by run; with R = 1 equal to
+    ``evaluate``.
     """
     bits, _, max_steps = _check_inputs(genomes, table, mode, start_power, max_steps, settings)
     start_arr = _check_colony_starts(starts, settings, colony)
     n_start, n_robots = start_arr.shape[:2]
     draws = _draws(envelope, table, settings, envelope_key, colony.disc_radius, n_start, n_robots)
     limit = -1 if colony.colony_step_limit is None else colony.colony_step_limit
-    params = (colony.disc_radius, colony.min_distance, colony.charge_steps, limit)
+    params = (colony.disc_radius, colony.min_distance, colony.charge_steps, limit,
+              colony.blocking_code)  # fmt: skip
     st, pose, out_run = kernel.run_colony_flat(
         *_decoded(bits),
         start_arr,

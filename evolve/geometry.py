@@ -389,6 +389,30 @@ def too_close(x, y, ox, oy, min_dist):
 
 
 @register_jitable
+def slide_end(x, y, nx, ny, ox, oy):
+    """End of a move from centre (x, y) to (nx, ny) that the disc centred (ox, oy) blocks,
+    under ``ColonySettings.blocking = "slide"``: the move keeps its component along the
+    contact tangent (arena frame, units). With d = (nx − x, ny − y) and n = (x − ox, y − oy)
+    / |…| (the unit normal from the other centre to this one at the move's start), returns
+    (x, y) + d − (d·n) n when d·n < 0; else (nx, ny) (d does not point into the other disc),
+    and (x, y) when the two centres coincide. The caller tests the end again
+    (``too_close``): this does not say whether it is free."""
+    ux = x - ox
+    uy = y - oy
+    norm = math.sqrt(ux * ux + uy * uy)
+    if norm == 0.0:
+        return x, y
+    ux = ux / norm
+    uy = uy / norm
+    dx = nx - x
+    dy = ny - y
+    dn = dx * ux + dy * uy
+    if dn >= 0.0:
+        return nx, ny
+    return x + (dx - dn * ux), y + (dy - dn * uy)
+
+
+@register_jitable
 def source_lights(x, y, k, p):
     """Whether light source k lights the point (x, y): the direction from the source to the
     point lies within the cone of half-angle P_LIGHT_HALF around P_LIGHT_AXIS."""
@@ -535,6 +559,7 @@ __all__ = [
     "square_at",
     "square_index",
     "square_is_inner",
+    "slide_end",
     "too_close",
     "wall_bits",
     "wrap180",

@@ -76,6 +76,7 @@ from evolve.geometry import (
     killed,
     light_bits,
     move,
+    slide_end,
     square_at,
     square_is_inner,
     too_close,
@@ -89,6 +90,7 @@ from evolve.interpreter import (
     END_POWER_EMPTY,
     END_STEP_LIMIT,
 )
+from evolve.settings import BLOCKING_RULES
 from evolve.variation import E_RADIUS, E_SCATTER, E_STOPS, E_X0, E_X1, E_Y0, E_Y1, scattered_row
 
 _branch_destination = register_jitable(branch_destination)
@@ -111,6 +113,8 @@ S_COLUMNS = 13
 """S_END is −1 while the robot is live. S_COUNT: charging or backup steps left."""
 PHASE_PROGRAM, PHASE_CHARGE, PHASE_BACKUP = 0, 1, 2
 """What a colony robot does on its turn: run its program, charge, or back up."""
+BLOCK_SLIDE = BLOCKING_RULES.index("slide")
+"""The kernel's code of ``ColonySettings.blocking = "slide"`` (``blocking_code``)."""
 RUN_SQUARES, RUN_INNER, RUN_COLONY_STEPS = 0, 1, 2
 """Columns of the per-run integer output of ``evaluate_colony_flat``."""
 
@@ -141,20 +145,40 @@ def _blocked(x, y, others, me, min_dist):
     return False
 
 
+@njit(cache=True)
+def _slid(x, y, nx, ny, others, me, min_dist):
+    """A blocked move from (x, y) to (nx, ny) under ``ColonySettings.blocking = "slide"``:
+    (end x, end y, cancelled). Slid along the one robot of ``others`` (but row ``me``) that
+    blocks it (``geometry.slide_end``), cancelled when two or more block it or the slid end
+    is still too close to any. Called on blocked moves only (not inlined: a rare path)."""
+    first = -1
+    for j in range(others.shape[0]):
+        if j != me and too_close(nx, ny, others[j, 0], others[j, 1], min_dist):
+            if first >= 0:
+                return x, y, True
+            first = j
+    sx, sy = slide_end(x, y, nx, ny, others[first, 0], others[first, 1])
+    if _blocked(sx, sy, others, me, min_dist):
+        return x, y, True
+    return sx, sy, False
+
+
 @njit(cache=True, inline="always")
 def _walk(
     gait, table, sigma, p, x, y, h, power, lo, hi, squares, inner, others, me, min_dist,
-    run_env, key, cycle,
+    slide, run_env, key, cycle,
 ):  # fmt: skip
     """One gait cycle and the post-step checks, kill zone → power empty → mark square.
 
     ``table`` is the robot's gait table for the run (``evolve.variation``: rows plus bias);
     cycle number ``cycle`` of the robot (from 0) adds its scatter (σ ``sigma``, the robot's
     scatter ``key``). A move that would bring the centre closer than ``min_dist`` to another
-    robot (rows of ``others`` but ``me``), or into a station block that stops, is cancelled:
-    the pose is kept, the step still costs and is checked. ``run_env`` = ``_run_env``'s
-    tuple. Returns (x, y, h, power, lo, hi, squares, inner, end, blocked), end = −1 if the
-    run goes on.
+    robot (rows of ``others`` but ``me``) is cancelled, or with ``slide`` slid along it
+    (``_slid``, ``ColonySettings.blocking``); one into a station block that stops is
+    cancelled. A cancelled move keeps the pose; the step still costs and is checked.
+    ``run_env`` = ``_run_env``'s tuple. Returns (x, y, h, power, lo, hi, squares, inner,
+    end, blocked), end = −1 if the run goes on, blocked when another robot blocked the move
+    (cancelled or slid) or the station block cancelled it.
     """
     scale, stops, x0, y0, x1, y1, radius = run_env
     f, t, dh = table[gait, 0], table[gait, 1], table[gait, 2]
@@ -164,9 +188,12 @@ def _walk(
         )
     nx, ny, nh = move(x, y, h, f, t, dh)
     blocked = _blocked(nx, ny, others, me, min_dist)
-    if stops and not blocked:
-        blocked = block_stops(x, y, nx, ny, x0, y0, x1, y1, radius)
-    if not blocked:
+    cancel = blocked
+    if slide and blocked:
+        nx, ny, cancel = _slid(x, y, nx, ny, others, me, min_dist)
+    if stops and not cancel and block_stops(x, y, nx, ny, x0, y0, x1, y1, radius):
+        cancel = blocked = True
+    if not cancel:
         x, y, h = nx, ny, nh
     power = power - p[P_GAIT_COST + gait]
     if killed(x, y, p):
@@ -275,7 +302,7 @@ def run_one(
             gait = arg[g, k]
             x, y, h, power, lo, hi, squares, inner, end, _ = _walk(
                 gait, table, sigma, p, x, y, h, power, lo, hi, squares, inner, _NO_ROBOTS, -1,
-                0.0, run_env, key, steps,
+                0.0, False, run_env, key, steps,
             )  # fmt: skip
             steps += 1
             branches = 0
@@ -297,7 +324,7 @@ def run_one(
                 for _ in range(n_backup):
                     x, y, h, power, lo, hi, squares, inner, end, _ = _walk(
                         backup, table, sigma, p, x, y, h, power, lo, hi, squares, inner,
-                        _NO_ROBOTS, -1, 0.0, run_env, key, steps,
+                        _NO_ROBOTS, -1, 0.0, False, run_env, key, steps,
                     )  # fmt: skip
                     steps += 1
                     if end >= 0:
@@ -491,7 +518,8 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     One colony step: each live robot in index order takes a charging step, or a backup
     cycle, or runs its program to its next gait and takes it, each with its checks.
     ``code`` = decoded (loops, ops, arg, target); ``colony`` = (disc radius, minimum centre
-    distance, charge steps, colony-step limit or −1). ``pose`` (R, 3) holds the start poses
+    distance, charge steps, colony-step limit or −1, blocking code: ``BLOCK_SLIDE`` slides
+    blocked moves, 0 cancels them). ``pose`` (R, 3) holds the start poses
     and receives the final ones; ``power`` (R,), ``st`` (R, S_COLUMNS), ``masks`` (R, 2)
     uint64 are the robots' state; ``out`` receives (colony squares, inner, colony steps).
     ``draws`` = (gait tables (R, 16, 3), reaches (R,), station seen, scatter keys (R,), σ
@@ -506,6 +534,7 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     block = (seen, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1])
     radius, min_dist = colony[0], colony[1]
     charge_steps, step_limit = int(colony[2]), int(colony[3])
+    slide = int(colony[4]) == BLOCK_SLIDE
     max_branches = int(p[P_MAX_BRANCH])
     backup = int(p[P_BACKUP_GAIT])
     _start(loops, power0, max_steps, pose, power, st, masks)
@@ -550,7 +579,7 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
                 lo, hi, sq, inner = masks[i, 0], masks[i, 1], st[i, S_SQUARES], st[i, S_INNER]
                 x, y, h, pw, lo, hi, sq, inner, end, blocked = _walk(
                     gait, rows[i], sigma, p, x, y, h, pw, lo, hi, sq, inner, pose, i, min_dist,
-                    run_env, keys[i], st[i, S_STEPS],
+                    slide, run_env, keys[i], st[i, S_STEPS],
                 )  # fmt: skip
                 pose[i, 0], pose[i, 1], pose[i, 2], power[i] = x, y, h, pw
                 masks[i, 0], masks[i, 1], st[i, S_SQUARES], st[i, S_INNER] = lo, hi, sq, inner

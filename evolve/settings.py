@@ -22,6 +22,11 @@ class SettingsError(InputError, ValueError):
     message names the field."""
 
 
+BLOCKING_RULES = ("cancel", "slide")
+"""``ColonySettings.blocking`` values; a rule's index is its code in the numba kernel
+(``ColonySettings.blocking_code``)."""
+
+
 @dataclass(frozen=True)
 class WorldSettings:
     """The colony arena, sensors and power model (SPEC §3)."""
@@ -175,8 +180,32 @@ class ColonySettings:
     start_attempts: int = 10_000
     """Rejection draws allowed per robot's start pose before the sampler gives up (a bound,
     not a SPEC value)."""
+    blocking: str = "cancel"
+    """What the table world does with a gait move that another robot blocks [chosen; issue 17].
+    Robot at centre c = (x, y) (arena units, x east, y north) with its move's end c + d (d: the
+    gait row's (F, T) turned into the arena frame by the heading at the cycle's start, as
+    ``geometry.move``; d = end − c) and heading h + ΔH. The move is blocked when c + d lies
+    closer than ``min_distance`` (two radii) to another robot's centre o (live or ended).
+
+    - ``"cancel"`` (default, SPEC §7): a blocked move is cancelled, the robot keeps its whole
+      pose (heading too).
+    - ``"slide"``: a move blocked by exactly one robot keeps its component along the contact
+      tangent: with n = (c − o) / |c − o|, the unit normal from the other centre to this one
+      at the move's start, d' = d − (d·n) n, and the robot ends at c + d' with heading
+      h + ΔH (``geometry.slide_end``). The move is cancelled as under ``"cancel"`` when two
+      or more robots block it, when d·n ≥ 0 (d does not point into the other disc: only
+      rounding can then block it), or when c + d' is still closer than two radii to any
+      robot. An envelope's station block that stops motion (``Envelope.station_stops``)
+      then cancels the slid move as it cancels any move.
+
+    Either way a blocked move (slid or cancelled) counts as a collision, costs power and is
+    checked (squares, kill zone, docking) on the pose it leaves. Only the table world reads
+    this; physics blocks by contacts (frictionless bumpers, which slide)."""
 
     def __post_init__(self) -> None:
+        if self.blocking not in BLOCKING_RULES:
+            allowed = ", ".join(repr(b) for b in BLOCKING_RULES)
+            raise SettingsError(f"blocking must be one of {allowed}, got {self.blocking!r}")
         if self.robots < 1:
             raise SettingsError(f"robots must be ≥ 1, got {self.robots}")
         if not self.disc_radius >= 0.0:
@@ -199,8 +228,19 @@ class ColonySettings:
         """Closest allowed distance between two robots' centres: two disc radii, units."""
         return 2.0 * self.disc_radius
 
+    @property
+    def blocking_code(self) -> int:
+        """``blocking`` as the numba kernel's code: its index in ``BLOCKING_RULES``."""
+        return BLOCKING_RULES.index(self.blocking)
+
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """Every field, but ``blocking`` only when it is not ``"cancel"``: the record of a
+        colony made before the field existed (``settings.json``, checked on resume) is
+        unchanged, so such a run folder still resumes."""
+        d = dataclasses.asdict(self)
+        if self.blocking == "cancel":
+            del d["blocking"]
+        return d
 
 
 @dataclass(frozen=True)
@@ -308,11 +348,18 @@ def navigation_ga_settings(**overrides: Any) -> GASettings:
 
 
 def settings_json(*objs: Any) -> str:
-    """Serialise settings dataclasses as one JSON object keyed by class name."""
-    return json.dumps({type(o).__name__: dataclasses.asdict(o) for o in objs}, indent=2)
+    """Serialise settings dataclasses as one JSON object keyed by class name: each one's
+    ``to_dict()`` where it has one (``ColonySettings`` leaves a default field out), else
+    every field."""
+    return json.dumps(
+        {type(o).__name__: o.to_dict() if hasattr(o, "to_dict") else dataclasses.asdict(o)
+         for o in objs},
+        indent=2,
+    )  # fmt: skip
 
 
 __all__ = [
+    "BLOCKING_RULES",
     "SettingsError",
     "ColonySettings",
     "GASettings",

@@ -10,7 +10,8 @@ The colony world decides movement (including moves that another robot blocks) an
 robot's sensors see of the others; the interpreter keeps everything else per robot (power,
 mode, program counter, loops, branch counter) and for the colony (the order of steps, the
 station's occupancy, squares). ``TableColony`` is the table world's colony: robots are discs
-of ``ColonySettings.disc_radius``, a move that would overlap another disc is cancelled.
+of ``ColonySettings.disc_radius``, a move that would overlap another disc is cancelled (or
+slid along it: ``ColonySettings.blocking``).
 
 Both table worlds take an envelope of variation (SPEC §9, ``evolve.envelope``) with the key of
 its draws and the start's index in the batch (``evaluate``'s column): the world carries the
@@ -179,9 +180,10 @@ class TableColony:
     ``colony.disc_radius``, moving by gait-table rows as in ``TableWorld``.
 
     A move that would bring a robot's centre closer than two radii to another robot's
-    centre is cancelled (the robot keeps its whole pose). Object sensors see the walls and
-    every point of the other robots' discs (``geometry.disc_bits``); light sensors are the
-    lone robot's. ``starts`` is (R, 3): x, y (arena units), heading (deg) per robot.
+    centre is cancelled (the robot keeps its whole pose), or with ``colony.blocking`` =
+    ``"slide"`` slid along the contact tangent (``ColonySettings.blocking``). Object sensors
+    see the walls and every point of the other robots' discs (``geometry.disc_bits``); light
+    sensors are the lone robot's. ``starts`` is (R, 3): x, y (arena units), heading (deg) per robot.
     ``envelope``, ``envelope_key``, ``start``: as ``TableWorld``, robot i drawing as robot i
     of ``evolve.evaluate_colony``'s column ``start``; a seen station block is one for all.
     """
@@ -203,6 +205,7 @@ class TableColony:
             raise ValueError(f"starts must be (R, 3) of x, y, heading, got {arr.shape}")
         self._radius = float(self.colony.disc_radius)
         self._min_dist = float(self.colony.min_distance)
+        self._slide = self.colony.blocking == "slide"
         self.table, self.world, self._p, self._runs = _robot_runs(
             table, world, envelope, envelope_key, start, self._radius, len(arr)
         )
@@ -216,18 +219,29 @@ class TableColony:
         return self._poses[i]
 
     def step(self, i: int, gait: int) -> bool:
-        """Apply one cycle of ``gait`` to robot ``i`` unless it would come too close to
-        another robot (or into a station block that stops); returns True when the move was
-        cancelled."""
+        """Apply one cycle of ``gait`` to robot ``i``. A move that would end closer than two
+        radii to another robot is cancelled, or slid along the contact tangent, as
+        ``ColonySettings.blocking`` says; a move into a station block that stops is
+        cancelled. Returns True when another robot blocked the move (cancelled or slid) or
+        the station block cancelled it."""
         x, y, h = self._poses[i]
         nx, ny, nh = geometry.move(x, y, h, *self._runs[i].row(gait))
-        for j, (ox, oy, _) in enumerate(self._poses):
-            if j != i and geometry.too_close(nx, ny, ox, oy, self._min_dist):
+        blockers = [
+            (ox, oy)
+            for j, (ox, oy, _) in enumerate(self._poses)
+            if j != i and geometry.too_close(nx, ny, ox, oy, self._min_dist)
+        ]
+        if blockers:
+            if not self._slide or len(blockers) > 1:
                 return True
+            nx, ny = geometry.slide_end(x, y, nx, ny, *blockers[0])
+            for j, (ox, oy, _) in enumerate(self._poses):
+                if j != i and geometry.too_close(nx, ny, ox, oy, self._min_dist):
+                    return True
         if self._runs[i].stopped(x, y, nx, ny):
             return True
         self._poses[i] = (nx, ny, nh)
-        return False
+        return bool(blockers)
 
     def object_sensors(self, i: int) -> tuple[bool, bool]:
         x, y, h = self._poses[i]

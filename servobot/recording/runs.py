@@ -190,7 +190,7 @@ def validation_properties(job: Any, physics: PhysicsSettings) -> dict[str, Any]:
         "mode": mode,
     }  # fmt: skip
     if colony is not None:
-        settings["ColonySettings"] = colony
+        settings["ColonySettings"] = colony.to_dict()
     return {
         "chromosome": {"text": format_chromosome(np.asarray(job.bits))},
         "start": start | {"index": job.index},

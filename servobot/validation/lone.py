@@ -618,7 +618,7 @@ def plan_validation(
     disk = check_sizes(len(poses), steps * robots, workers, rrd, seed)
     settings = validation_settings(world, arena, physics, steps, seed, model, mode)
     if colony is not None:
-        settings["ColonySettings"] = jsonable(colony)
+        settings["ColonySettings"] = jsonable(colony.to_dict())  # blocking: only if not cancel
     common = {"bits": arr, "table": values, "world": world, "arena": arena, "physics": physics,
               "max_steps": max_steps, "seed": seed,
               "model": None if model is None else str(model),
