@@ -72,13 +72,15 @@ def test_coverage_outputs(run_dir):
 
 
 def test_colony_outputs(run_dir, capsys):
-    args = ["evolve", "colony", *TINY, "--generations", "2", "--robots", "2", "--out", str(run_dir)]
+    args = ["evolve", "colony", *TINY, "--generations", "2", "--robots", "2", "--blocking",
+            "slide", "--out", str(run_dir)]  # fmt: skip
     assert servobot(args) == 0
     assert "colony of 2: Figure 9 at generation 2" in capsys.readouterr().out
     col = run_dir / "colony"
     summary = json.loads((col / "summary.json").read_text())
     assert summary["robots"] == 2 and summary["generations"] == [0, 1, 2]
     assert summary["settings"]["ColonySettings"]["robots"] == 2
+    assert summary["settings"]["ColonySettings"]["blocking"] == "slide"
     nav = read_chromosome(run_dir / "navigation/best.txt")
     for k in (0, 1):
         np.testing.assert_array_equal(read_chromosome(col / f"best_pop{k}.txt")[8:], nav)
@@ -104,6 +106,7 @@ def test_resume_of_a_finished_run_changes_nothing(run_dir, capsys):
         (["navigation", "--navigation", "x.txt", "--out", "{tmp}"], "option of the coverage"),
         (["colony", "--out", "{tmp}"], "no navigation section file"),
         (["coverage", "--robots", "2", "--out", "{tmp}"], "option of the colony"),
+        (["navigation", "--blocking", "slide", "--out", "{tmp}"], "--blocking is an option"),
         (["colony", "--robots", "0", "--out", "{tmp}"], "--robots must be"),
         (
             ["colony", "--robots", "40", "--navigation", "{nav}", "--out", "{tmp}"],

@@ -8,17 +8,18 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --out runs/evolve --resume
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
-    servobot evolve colony     [... as coverage ... --robots 3]
+    servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
-R). ``--navigation`` defaults to ``DIR/navigation/best.txt``; a
-16-gene file (e.g. a ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the
-navigation section, are used. Bad input (missing or malformed files, a bad gait table,
-impossible sizes, a run folder holding another run or in use) prints one message and exits
-with code 2, without a traceback (``servobot.cli.runner``); ``--force`` deletes the stage's
-own files in a folder holding another run and starts afresh. Ctrl-C keeps the checkpoints
-and says how to resume (exit 130).
+R, ``--blocking`` its table-world blocking rule). ``--navigation`` defaults to
+``DIR/navigation/best.txt``; a 16-gene file (e.g. a ``coverage/best_pop{k}.txt``) is
+accepted too and its genes 8–15, the navigation section, are used. Bad input (missing or
+malformed files, a bad gait table, impossible sizes, a run folder holding another run or in
+use) prints one message and exits with code 2, without a traceback
+(``servobot.cli.runner``); ``--force`` deletes the stage's own files in a folder holding
+another run and starts afresh. Ctrl-C keeps the checkpoints and says how to resume (exit
+130).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from evolve.settings import GASettings, WorldSettings, navigation_ga_settings
+from evolve.settings import BLOCKING_RULES, GASettings, WorldSettings, navigation_ga_settings
 from infra.bounds import check_int
 from infra.errors import InputError
 from infra.executors import Executor
@@ -91,6 +92,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--robots", type=int, default=None, help="colony only: robots sharing the station (3)"
+    )
+    p.add_argument(
+        "--blocking",
+        choices=BLOCKING_RULES,
+        default=None,
+        help="colony only: a move another robot blocks is cancelled (the robot keeps its "
+        "pose; SPEC §7, default) or slides along the contact tangent (its component into "
+        "the other robot removed, as frictionless physics bumpers do); docs/colony.md",
     )
     p.add_argument(
         "--power",
@@ -223,13 +232,14 @@ def _print_colony(summary: dict[str, Any], out: Path) -> None:
     print(f"wrote {out / 'colony'} ({summary['wall_s']:.1f} s)")
 
 
-def _colony(robots: int | None) -> Any:
+def _colony(robots: int | None, blocking: str | None) -> Any:
     from evolve.settings import ColonySettings
 
+    kw: dict[str, Any] = {} if blocking is None else {"blocking": blocking}
     if robots is None:
-        return ColonySettings()
+        return ColonySettings(**kw)
     check_int(robots, "--robots", lo=1)
-    return ColonySettings(robots=robots)
+    return ColonySettings(robots=robots, **kw)
 
 
 def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
@@ -238,7 +248,9 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
 
     if args.robots is not None and args.stage != "colony":
         raise CliError("--robots is an option of the colony stage")
-    colony = _colony(args.robots)
+    if args.blocking is not None and args.stage != "colony":
+        raise CliError("--blocking is an option of the colony stage")
+    colony = _colony(args.robots, args.blocking)
     ga = ga_settings(args)
     table = load_table(args.table)
     world = with_power_model(WorldSettings(), args.power, table)
