@@ -14,8 +14,9 @@ load runs in the world of §3 (envelope ``none``) and, on an ``envelope default`
 envelope ``DEFAULT`` (SPEC §9), with its rates' ratio to ``none``'s.
 
 Run: ``python -m evolve.bench [--threads 1 2] [--population 256] [--starts 10] [--repeats 5]
-[--robots 3] [--clock wall|cpu]``; ``--clock cpu`` divides by the process's CPU time, which a
-shared machine's other load disturbs less than wall time (it hides poor thread scaling).
+[--robots 3] [--blocking cancel|slide] [--clock wall|cpu]``; ``--clock cpu`` divides by the
+process's CPU time, which a shared machine's other load disturbs less than wall time (it hides
+poor thread scaling). ``--blocking``: the colonies' ``ColonySettings.blocking``.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import numpy as np
 from evolve.envelope import DEFAULT, NONE, Envelope
 from evolve.evaluation import evaluate, evaluate_colony
 from evolve.ga import random_sections
-from evolve.settings import ColonySettings, WorldSettings
+from evolve.settings import BLOCKING_RULES, ColonySettings, WorldSettings
 from evolve.starts import colony_starts, coverage_starts
 from evolve.table import PAPER_TABLE
 
@@ -112,12 +113,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--starts", type=int, default=10)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--robots", type=int, default=ColonySettings().robots)
+    ap.add_argument("--blocking", choices=BLOCKING_RULES, default=ColonySettings().blocking)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--clock", choices=tuple(CLOCKS), default="wall")
     args = ap.parse_args(argv)
     clock = CLOCKS[args.clock]
     rng = np.random.default_rng(args.seed)
-    colony = ColonySettings(robots=args.robots)
+    colony = ColonySettings(robots=args.robots, blocking=args.blocking)
     loads = _loads(rng, args.population, args.starts, colony)
     _, g, lone, col, _ = loads[0]
     for env in (NONE, DEFAULT):  # compile / load
@@ -126,8 +128,9 @@ def main(argv: list[str] | None = None) -> int:
                         envelope=env)  # fmt: skip
     print(f"numba {numba.__version__}, threading layer after first call: {numba.threading_layer()}")
     print(
-        f"population {args.population} x {args.starts} starts, colonies of {args.robots}, best "
-        f"of {args.repeats} (lone and colony calls alternate), {args.clock} clock"
+        f"population {args.population} x {args.starts} starts, colonies of {args.robots} "
+        f"({args.blocking}), best of {args.repeats} (lone and colony calls alternate), "
+        f"{args.clock} clock"
     )
     for threads in args.threads:
         numba.set_num_threads(threads)

@@ -204,6 +204,8 @@ CASES = {
         *_file_cases(what="chromosome file"),
         (["{latin1}"], "latin1.txt: is not UTF-8 text"),
         (["{chrom8}", "--robots", "2"], "needs a full 16-gene chromosome"),
+        (["{chrom16}", "--blocking", "slide"], "--blocking is an option of a colony"),
+        (["{chrom16}", "--robots", "2", "--blocking", "bounce"], "invalid choice: 'bounce'"),
         (["{chrom16}", "--poses", "{chrom16}"], "--poses: only for an 8-gene navigation section"),
         *_file_cases("{chrom8}", "--poses", what="poses file"),
         (["{chrom8}", "--poses", "{chrom8}"], "the header lacks column(s) x, y, h"),

@@ -185,3 +185,14 @@ def test_blocking_is_validated_and_recorded_only_when_not_cancel():
     assert record == {k: v for k, v in dataclasses.asdict(ColonySettings()).items()
                       if k != "blocking"}  # fmt: skip
     assert json.loads(settings_json(SLIDE))["ColonySettings"]["blocking"] == "slide"
+
+
+def test_the_comparison_command_runs(tmp_path, capsys):
+    from evolve.blocking_compare import main
+    from evolve.codec import write_chromosome
+
+    path = write_chromosome(tmp_path / "c.txt", FORWARD)
+    assert main([str(path), "--starts", "4", "--robots", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "4 colony starts of 2" in out and "cancel: colony inner" in out
+    assert "slide : colony inner" in out and "of them cancelled" in out

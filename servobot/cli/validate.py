@@ -7,7 +7,8 @@ the ``--poses FILE`` poses and powers (e.g. a coverage stage's ``handoffs.csv``)
 ``report.json``, ``report.md``,
 ``tracks.npz`` (and ``run{k}.rrd`` with ``--rrd``) into ``--out``. With ``--robots R`` each
 start is a colony of R robots sharing the station (SPEC §7): N colony starts drawn by
-``evolve.starts.colony_starts``, or the ``--start`` poses taken R at a time; it also writes
+``evolve.starts.colony_starts``, or the ``--start`` poses taken R at a time (``--blocking``:
+the table world's blocking rule, ``ColonySettings.blocking``); it also writes
 ``tracks{k}.png`` (``servobot.validation.colony``). Prints the per-start table
 and the summary. Exit status: 0 = all runs finished, 1 = some physics runs failed (their
 errors are in the report), 2 = bad input (message names the problem; checked before any
@@ -28,7 +29,7 @@ import numpy as np
 
 from evolve.codec import SECTION_GENES, ChromosomeError, read_chromosome
 from evolve.handoff import read_poses
-from evolve.settings import ColonySettings, WorldSettings
+from evolve.settings import BLOCKING_RULES, ColonySettings, WorldSettings
 from evolve.starts import colony_starts, coverage_starts
 from infra.bounds import check_int, check_need, check_number
 from infra.errors import InputError
@@ -107,6 +108,14 @@ def build_parser() -> argparse.ArgumentParser:
         "are then taken R at a time (default: one robot, no colony)",
     )
     p.add_argument(
+        "--blocking",
+        choices=BLOCKING_RULES,
+        default=None,
+        help="with --robots: the table world's rule for a move another robot blocks, cancel "
+        "(SPEC §7, default) or slide along the contact tangent (docs/colony.md); physics "
+        "blocks by contacts either way",
+    )
+    p.add_argument(
         "--seed", type=int, default=0, help="seed of the start poses and servo noise (default 0)"
     )
     p.add_argument(
@@ -181,11 +190,14 @@ def _check_options(args: argparse.Namespace, n_starts: int) -> None:
 
 
 def _colony(args: argparse.Namespace) -> ColonySettings | None:
-    """The colony of ``--robots`` (None without it)."""
+    """The colony of ``--robots`` and ``--blocking`` (None without ``--robots``)."""
     if args.robots is None:
+        if args.blocking is not None:
+            raise InputError("--blocking is an option of a colony (--robots R)")
         return None
     check_int(args.robots, "--robots", lo=1)
-    return ColonySettings(robots=args.robots)
+    kw = {} if args.blocking is None else {"blocking": args.blocking}
+    return ColonySettings(robots=args.robots, **kw)
 
 
 def _given_starts(args: argparse.Namespace, colony: ColonySettings | None) -> np.ndarray:
