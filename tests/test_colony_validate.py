@@ -238,3 +238,20 @@ def test_cli_takes_given_starts_r_at_a_time(chromosome, tmp_path):
     assert rc == 0
     (run,) = json.loads((out / "report.json").read_text())["runs"]
     assert [p["y"] for p in run["start"]] == [300.0, 350.0]
+    # cancel, the default, is not recorded (the records made before the setting existed)
+    record = json.loads((out / "report.json").read_text())["settings"]["ColonySettings"]
+    assert "blocking" not in record
+
+
+def test_cli_blocking_reaches_the_table_world(chromosome, tmp_path):
+    """``--blocking slide``: recorded, and the table world's colony runs under it."""
+    out = tmp_path / "out"
+    rc = validate_cli.main([str(chromosome), "--robots", "2", "--blocking", "slide", "--start",
+                            "300", "300", "0", "--start", "300", "350", "0", "--steps", "1",
+                            "--workers", "1", "--no-progress", "--out", str(out)])  # fmt: skip
+    assert rc == 0
+    doc = json.loads((out / "report.json").read_text())
+    assert doc["settings"]["ColonySettings"]["blocking"] == "slide"
+    args = validate_cli.build_parser().parse_args([str(chromosome), "--robots", "2",
+                                                   "--blocking", "slide"])  # fmt: skip
+    assert validate_cli._colony(args) == ColonySettings(robots=2, blocking="slide")
