@@ -224,7 +224,8 @@ def check_summary(doc: Any, file: Path, method: str | None = None) -> dict[str, 
         if not all(_is_num(v) for v in curve[k]):
             raise bad(f"best_by_generation.{k}", "fitnesses are finite numbers or null")
     final = doc["final"]
-    if not isinstance(final, dict) or not _is_num(final.get("physics_inner_percent")):
+    if (not isinstance(final, dict) or "physics_inner_percent" not in final
+            or not _is_num(final["physics_inner_percent"])):  # fmt: skip
         raise bad("final.physics_inner_percent", "a finite number or null")
     if not isinstance(doc.get("settings"), dict):
         raise bad("settings", "the run's settings object")
