@@ -409,6 +409,8 @@ def test_named_and_file_envelopes_load(tmp_path):
         ({"station_seen_p": 1.5}, "station_seen_p must be a probability"),
         ({"reach_units": True}, "reach_units must be a finite number"),
         ({"station_stops": 1}, "station_stops must be true or false"),
+        ({"draws_per_start": 1.5}, "draws_per_start must be an integer ≥ 1"),
+        ({"warmup_fraction": -0.1}, "warmup_fraction must be ≥ 0"),
         ({"scatter": 1.0}, "unknown field 'scatter'"),
         ([1, 2], "a JSON object"),
     ],
@@ -582,3 +584,12 @@ def test_draws_per_start_average_the_draws_of_each_start(tmp_path):
     np.testing.assert_array_equal(got.fitness, ((per_key[0] + per_key[1]) / 2).mean(axis=1))
     with pytest.raises(EnvelopeError, match="draws_per_start"):
         Envelope(draws_per_start=0)
+
+
+def test_an_envelope_recorded_before_the_training_fields_reads_back_as_it_was():
+    old_record = {"scatter_scale": 1.0, "bias_scale": 0.0, "station_seen_p": 0.5,
+                  "reach_units": 5.0, "station_stops": False}  # fmt: skip
+    env = Envelope.from_dict(old_record)
+    assert (env.draws_per_start, env.warmup_fraction) == (1, 0.0)
+    assert env.to_dict() == old_record  # a folder made then still resumes
+    assert DEFAULT.to_dict() == old_record | {"draws_per_start": 2}
