@@ -16,6 +16,10 @@ of §3 bit for bit:
 4. sensor reach: the object sensors' activation distance is drawn per run uniformly in
    [range − ``reach_units``, range + ``reach_units``] (range = ``WorldSettings.object_range``).
 
+How training samples the envelope is part of it too: ``draws_per_start`` draws of every
+training start (their mean is the run's fitness) and a ``warmup_fraction`` of a stage's first
+generations trained in the world of §3.
+
 σ (``envelope_sigma``) is a gait table's per-gait per-cycle standard deviation (``F_std``,
 ``T_std``, ``dH_std`` of a calibration file); the paper's table, which has none, borrows the
 shipped robot's (``SHIPPED_STD``, a data file: ``evolve`` imports no physics).
@@ -90,6 +94,20 @@ class Envelope:
     the step still counts and costs power, as a colony's cancelled move. False until measured
     against physics."""
 
+    warmup_fraction: float = 0.0
+    """[chosen] Incremental evolution: the first ``round(warmup_fraction × generations)``
+    generations of a stage train in the world of §3, the rest in the envelope (its tests
+    always run in it). A population first learns the exact task, then to hold it across the
+    variation (Harvey, Husbands & Cliff 1994; Nolfi & Floreano 2000). 0: the envelope from
+    generation 0. In [0, 1)."""
+
+    draws_per_start: int = 1
+    """[chosen] Training draws per start: each of a generation's start poses runs this many
+    times, each with its own draws of the envelope, and its run fitness is their mean. A run in
+    an envelope samples a random outcome; more draws make an individual's fitness a better
+    estimate of its expectation, for proportionally more runs. Draw d of generation g is keyed
+    (seed, g) for d = 0 (so 1 is the envelope as before) and (seed, g, d) otherwise. ≥ 1."""
+
     def __post_init__(self) -> None:
         for name in ("scatter_scale", "bias_scale", "station_seen_p", "reach_units",
                      "warmup_fraction"):
@@ -109,20 +127,6 @@ class Envelope:
                                 f"{self.station_seen_p!r}")  # fmt: skip
         if not isinstance(self.station_stops, bool):
             raise EnvelopeError(f"station_stops must be true or false, got {self.station_stops!r}")
-
-    warmup_fraction: float = 0.0
-    """[chosen] Incremental evolution: the first ``round(warmup_fraction × generations)``
-    generations of a stage train in the world of §3, the rest in the envelope (its tests
-    always run in it). A population first learns the exact task, then to hold it across the
-    variation (Harvey, Husbands & Cliff 1994; Nolfi & Floreano 2000). 0: the envelope from
-    generation 0. In [0, 1)."""
-
-    draws_per_start: int = 1
-    """[chosen] Training draws per start: each of a generation's start poses runs this many
-    times, each with its own draws of the envelope, and its run fitness is their mean. A run in
-    an envelope samples a random outcome; more draws make an individual's fitness a better
-    estimate of its expectation, for proportionally more runs. Draw d of generation g is keyed
-    (seed, g) for d = 0 (so 1 is the envelope as before) and (seed, g, d) otherwise. ≥ 1."""
 
     @property
     def varies_motion(self) -> bool:

@@ -86,9 +86,10 @@ class Stage:
     ``starts``. The test starts always come from ``starts``."""
     envelope: Envelope = NONE
     """The envelope of variation (SPEC §9) every evaluation of the stage runs in: training
-    with the key (seed, generation) once past its warm-up (``Envelope.warmup_fraction``; the
-    warm-up trains in the world of §3), tests with ``evolve.envelope.key_of_test``; ``NONE``:
-    the world of §3. A stage evolved in an envelope reports its tests in both worlds."""
+    with the keys ``Envelope.training_keys(seed, generation)`` (one per draw per start) once
+    past its warm-up (``Envelope.warmup_fraction``; the warm-up trains in the world of §3),
+    tests with ``evolve.envelope.key_of_test``; ``NONE``: the world of §3. A stage evolved in
+    an envelope reports its tests in both worlds."""
 
     def genomes(self, sections: np.ndarray) -> np.ndarray:
         """Chromosomes the kernel runs: the sections, or sections + navigation (P, 16, 30)."""
