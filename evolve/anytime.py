@@ -66,6 +66,7 @@ from evolve.population import (
 from evolve.settings import GASettings, WorldSettings
 from evolve.starts import coverage_starts
 from evolve.table import COLUMNS, N_GAITS, GaitTable, table_to_json, validate_table
+from infra.bounds import is_finite_number
 from infra.io import atomic_write_json, read_json
 
 METHODS = ("none", "bias", "model")
@@ -397,8 +398,7 @@ def _is_int(v: Any, lo: int = 0, hi: int | None = None) -> bool:
 
 
 def _is_real(v: Any, lo: float = 0.0, hi: float = float("inf")) -> bool:
-    return (isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
-            and lo <= v <= hi)  # fmt: skip
+    return is_finite_number(v) and lo <= v <= hi
 
 
 def _numbers(v: Any, shape: tuple[int, ...], ok: Callable[[Any], bool]) -> bool:

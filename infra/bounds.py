@@ -111,6 +111,17 @@ def check_need(need: Need, what: str, *, limits: Limits = LIMITS) -> None:
         )
 
 
+def is_finite_number(value: Any) -> bool:
+    """Whether a value read from JSON is a finite number: an int or float (not a bool) that a
+    float holds (an int beyond a float's range, ±1e308, is not)."""
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
 def check_int(value: Any, option: str, *, lo: int, hi: int | None = None) -> int:
     """``value`` as an int in [lo, hi], else ``BoundsError`` naming ``option``."""
     ok = isinstance(value, int) and not isinstance(value, bool)

@@ -59,7 +59,7 @@ from evolve.stages import (
     stage_settings_doc,
 )
 from evolve.table import GaitTable
-from infra.bounds import check_need
+from infra.bounds import check_need, is_finite_number
 from infra.executors import Executor, Failed, make_executor
 from infra.io import atomic_write_json, read_json
 from infra.rundir import run_folder, settings_diff
@@ -194,7 +194,7 @@ def _comparable(doc: dict[str, Any]) -> dict[str, Any]:
 def _is_num(v: Any, *, none: bool = True) -> bool:
     if v is None:
         return none
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+    return is_finite_number(v)
 
 
 def check_summary(doc: Any, file: Path, method: str | None = None) -> dict[str, Any]:
