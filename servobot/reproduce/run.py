@@ -32,7 +32,6 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
-import math
 import os
 import sys
 import time
@@ -58,7 +57,7 @@ from evolve.settings import WorldSettings, settings_json
 from evolve.stages import STAGE_FILES, run_coverage, run_navigation, stage_need
 from evolve.starts import coverage_starts
 from evolve.table import GaitTable, load_table
-from infra.bounds import Need, check_need
+from infra.bounds import Need, check_need, is_finite_number
 from infra.executors import Executor, make_executor
 from infra.io import atomic_write_json, check_free_space, read_json
 from infra.rundir import RECORD_FILE, run_folder
@@ -258,7 +257,7 @@ class _Pipeline:
         reports = [folder / f"pop{k}" / "report.json" for k in range(self.s.coverage_populations)]
 
         def body() -> dict[str, Any]:
-            finalists, sections = self._finalist_validations(table), self._navigation_validations()
+            finalists, sections = self._finalist_validations(), self._navigation_validations()
             done = self._validate_all(table, finalists | sections)
             res = {name: done[name] for name in finalists}
             nav = {name: done[name] for name in sections}
@@ -287,9 +286,7 @@ class _Pipeline:
             path = self.out / "coverage" / "summary.json"
             coverage = read_json(path, what="coverage summary", error=ReproduceError)
             inner = coverage.get("final_inner_percent") if isinstance(coverage, dict) else None
-            if not (isinstance(inner, list) and inner and all(
-                    isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                    for v in inner)):  # fmt: skip
+            if not (isinstance(inner, list) and inner and all(map(is_finite_number, inner))):
                 raise ReproduceError(
                     f"{path}: field final_inner_percent: a list of finite numbers (one per "
                     "population) expected; the coverage stage's summary was edited or damaged: "
@@ -306,7 +303,7 @@ class _Pipeline:
         outputs = [] if self.s.model is not None else [folder / "robustness.json"]
         self.stage("robustness", body, outputs)
 
-    def _finalist_validations(self, table: GaitTable) -> dict[str, Any]:
+    def _finalist_validations(self) -> dict[str, Any]:
         """The physics validation of each coverage finalist, for ``_validate_all``."""
         s, folder = self.s, self.out / "validation"
         starts = validation_starts(s, self.world)
