@@ -108,6 +108,18 @@ class Envelope:
     estimate of its expectation, for proportionally more runs. Draw d of generation g is keyed
     (seed, g) for d = 0 (so 1 is the envelope as before) and (seed, g, d) otherwise. ≥ 1."""
 
+    station_strata: bool = False
+    """[chosen] Stratified station draws: the ``draws_per_start`` draws of a training start
+    share one uniform u, and draw d sees the block when (u + d / draws_per_start) mod 1 <
+    ``station_seen_p``. With p = 0.5 and 2 draws every start is scored once with the block seen
+    and once without, instead of 0, 1 or 2 times by chance. Draw 0 is the unstratified draw;
+    tests are never stratified. False: every draw independent."""
+
+    draw_fitness: str = "mean"
+    """[chosen] How a start's draws make its run fitness: ``mean`` (the expectation) or ``min``
+    (the worst draw: a controller scores what it does in the world of the envelope it copes
+    with least, Jakobi's criterion of reliability)."""
+
     def __post_init__(self) -> None:
         for name in ("scatter_scale", "bias_scale", "station_seen_p", "reach_units",
                      "warmup_fraction"):
@@ -125,8 +137,12 @@ class Envelope:
         if self.station_seen_p > 1.0:
             raise EnvelopeError(f"station_seen_p must be a probability in [0, 1], got "
                                 f"{self.station_seen_p!r}")  # fmt: skip
-        if not isinstance(self.station_stops, bool):
-            raise EnvelopeError(f"station_stops must be true or false, got {self.station_stops!r}")
+        for name in ("station_stops", "station_strata"):
+            if not isinstance(getattr(self, name), bool):
+                raise EnvelopeError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        if self.draw_fitness not in DRAW_FITNESS:
+            raise EnvelopeError(f"draw_fitness must be one of {', '.join(DRAW_FITNESS)}, got "
+                                f"{self.draw_fitness!r}")  # fmt: skip
 
     @property
     def varies_motion(self) -> bool:
@@ -136,12 +152,21 @@ class Envelope:
     @property
     def varies(self) -> bool:
         """Whether any aspect is on (else the world of §3; how training samples it is none)."""
-        return dataclasses.replace(self, warmup_fraction=0.0, draws_per_start=1) != NONE
+        return dataclasses.replace(self, **TRAINING_DEFAULTS) != NONE
 
     def training_keys(self, seed: int, generation: int) -> list[tuple[int, ...]]:
         """The draw keys of a generation's training runs, one per draw per start."""
         n = self.draws_per_start if self.varies else 1
         return [(seed, generation)] + [(seed, generation, d) for d in range(1, n)]
+
+    def station_stratum(self, key: tuple[int, ...]) -> tuple[tuple[int, ...], float]:
+        """The key whose uniform decides the station block of the runs of draw ``key``, and
+        the offset added to it (mod 1): ``(key, 0)`` but for a training draw (seed, g, d ≥ 1)
+        of a stratified envelope, whose station follows draw 0's uniform + d / draws_per_start.
+        """
+        if self.station_strata and len(key) == 3 and key[1] >= 0 and key[2] >= 1:
+            return key[:2], key[2] / self.draws_per_start
+        return key, 0.0
 
     def warmup_generations(self, generations: int) -> int:
         """Generations of a stage of ``generations`` that train in the world of §3."""
@@ -176,8 +201,12 @@ class Envelope:
             raise EnvelopeError(f"{name}: {exc}") from exc
 
 
-TRAINING_DEFAULTS = {"warmup_fraction": 0.0, "draws_per_start": 1}
+TRAINING_DEFAULTS = {
+    "warmup_fraction": 0.0, "draws_per_start": 1, "station_strata": False, "draw_fitness": "mean",
+}  # fmt: skip
 """How training samples an envelope, at their defaults (left out of ``to_dict``)."""
+DRAW_FITNESS = ("mean", "min")
+"""How a start's training draws combine (``Envelope.draw_fitness``)."""
 NONE = Envelope()
 """The world of §3: no variation."""
 DEFAULT = Envelope(

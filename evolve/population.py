@@ -318,7 +318,8 @@ class PopulationRun:
             fits.append(run_fit)
             docks = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == END_DOCKED)
             docked.append(docks[inverse])
-        run_fit = fits[0] if len(fits) == 1 else np.mean(fits, axis=0)
+        combine = np.min if stage.envelope.draw_fitness == "min" else np.mean
+        run_fit = fits[0] if len(fits) == 1 else combine(fits, axis=0)
         self._pending = Generation(
             starts, run_fit.mean(axis=1), float(np.mean(docked)), len(first)
         )

@@ -107,6 +107,10 @@ class Variation:
     """Robot radius that a seen block stops (``station_stops``), units."""
     object_range: float
     """The world's activation distance, units: the centre of the reach draws."""
+    station_trial: int
+    """The folded key of the station draws (``Envelope.station_stratum``)."""
+    station_offset: float
+    """Added (mod 1) to each run's station uniform (``Envelope.station_stratum``)."""
 
     @classmethod
     def of(
@@ -122,8 +126,10 @@ class Variation:
             )
         values = validate_table(getattr(table, "values", table))
         sigma = envelope_sigma(envelope, table)
-        return cls(envelope, values, sigma, fold(_check_key(key)), station_block(world),
-                   float(radius), float(world.object_range))  # fmt: skip
+        words = _check_key(key)
+        station_key, offset = envelope.station_stratum(words)
+        return cls(envelope, values, sigma, fold(words), station_block(world), float(radius),
+                   float(world.object_range), fold(station_key), offset)  # fmt: skip
 
     def run_key(self, start: int, robot: int) -> int:
         """Robot ``robot``'s run key at start index ``start``."""
@@ -151,7 +157,10 @@ class Variation:
         """Whether the run from start index ``start`` has the station block (robot 0's draw,
         one station for the colony)."""
         p = self.envelope.station_seen_p
-        return p > 0.0 and unit(absorb(self.run_key(start, 0), STREAM_STATION)) < p
+        if p <= 0.0:
+            return False
+        key = absorb(absorb(self.station_trial, int(start)), 0)
+        return (unit(absorb(key, STREAM_STATION)) + self.station_offset) % 1.0 < p
 
     def packed(self) -> np.ndarray:
         """The ``E_*`` vector the kernels read."""

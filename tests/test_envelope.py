@@ -411,6 +411,8 @@ def test_named_and_file_envelopes_load(tmp_path):
         ({"station_stops": 1}, "station_stops must be true or false"),
         ({"draws_per_start": 1.5}, "draws_per_start must be an integer ≥ 1"),
         ({"warmup_fraction": -0.1}, "warmup_fraction must be ≥ 0"),
+        ({"station_strata": "yes"}, "station_strata must be true or false"),
+        ({"draw_fitness": "median"}, "draw_fitness must be one of mean, min"),
         ({"scatter": 1.0}, "unknown field 'scatter'"),
         ([1, 2], "a JSON object"),
     ],
@@ -593,3 +595,39 @@ def test_an_envelope_recorded_before_the_training_fields_reads_back_as_it_was():
     assert (env.draws_per_start, env.warmup_fraction) == (1, 0.0)
     assert env.to_dict() == old_record  # a folder made then still resumes
     assert DEFAULT.to_dict() == old_record | {"draws_per_start": 2}
+
+
+def test_stratified_station_draws_split_each_start_between_the_worlds():
+    # p = 0.5, 2 draws: draw 0 is the unstratified draw, draw 1 the other world, at every start;
+    # 4 draws at p = 0.25: exactly one of them sees the block. Tests are never stratified.
+    def seen(env, key, n=400):
+        var = Variation.of(env, PAPER_TABLE, WORLD, key, 15.0)
+        return np.array([var.station_seen(s) for s in range(n)])
+
+    plain = Envelope(station_seen_p=0.5, draws_per_start=2)
+    strata = dataclasses.replace(plain, station_strata=True)
+    d0, d1 = seen(strata, (4, 7)), seen(strata, (4, 7, 1))
+    np.testing.assert_array_equal(d0, seen(plain, (4, 7)))
+    assert np.all(d0 != d1) and 0.4 < d0.mean() < 0.6
+    independent = seen(plain, (4, 7, 1))
+    assert np.any(d0 == independent)  # without strata the draws agree at some starts
+    quarter = dataclasses.replace(strata, station_seen_p=0.25, draws_per_start=4)
+    counts = sum(seen(quarter, (4, 7) + (() if d == 0 else (d,))).astype(int) for d in range(4))
+    np.testing.assert_array_equal(counts, 1)
+    test_key = key_of_test(4, "figure9", 1)
+    np.testing.assert_array_equal(seen(strata, test_key), seen(plain, test_key))
+
+
+def test_draw_fitness_min_scores_each_start_by_its_worst_draw(tmp_path):
+    worst = dataclasses.replace(LOUD, draws_per_start=2, draw_fitness="min")
+    ga = dataclasses.replace(TINY, populations=1, generations=1, save_generations=(0, 1))
+    stage = stages.coverage_stage(WORLD, parse_chromosome(LIGHT_FOLLOWER))
+    run = PopulationRun(0, dataclasses.replace(stage, envelope=worst), tmp_path,
+                        seed_seq=np.random.SeedSequence(3), table=load_table("paper"), ga=ga,
+                        world=WORLD, settings_text="{}", resume=False)  # fmt: skip
+    got = run.evaluate()
+    per_key = [evaluate_sections(run.pop, got.starts, dataclasses.replace(stage, envelope=LOUD),
+                                 load_table("paper"), WORLD, key)[0]
+               for key in ((ga.seed, 0), (ga.seed, 0, 1))]  # fmt: skip
+    np.testing.assert_array_equal(got.fitness, np.minimum(*per_key).mean(axis=1))
+    assert worst.to_dict()["draw_fitness"] == "min" and "draw_fitness" not in LOUD.to_dict()
