@@ -417,3 +417,23 @@ def test_bench_numbers_on_hand_made_summaries():
     assert arms["bias"]["wall_vs_table_only"] == pytest.approx(1.2)  # (10 + 2) / 10
     assert arms["bias"]["wall_vs_table_only_with_final"] == pytest.approx(62 / 60)
     assert arms["bias"]["goal_met"] is True and arms["none"]["goal_met"] is None
+
+
+
+def test_bench_evolves_every_method_in_its_envelope(nav_file, tmp_path, monkeypatch):
+    """``--envelope`` reaches every arm's run (``none`` first, the others against it); a bad
+    envelope file is refused before anything runs."""
+    from evolve.envelope import EnvelopeError
+    from servobot.anytime import bench
+
+    calls = []
+    monkeypatch.setattr(bench, "run_anytime", lambda folder, **kw: calls.append((folder, kw)))
+    argv = ["--navigation", str(nav_file), "--out", str(tmp_path), "--methods", "bias",
+            "--envelope", "default", "--executor", "serial"]  # fmt: skip
+    bench.run_arms(bench.parse_args(argv))
+    assert [f.name for f, _ in calls] == ["none", "bias"]
+    assert all(kw["envelope"] == DEFAULT for _, kw in calls)
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"scatter_scale": -1}')
+    with pytest.raises(EnvelopeError, match="scatter_scale"):
+        bench.run_arms(bench.parse_args(argv[:-4] + ["--envelope", str(bad)]))

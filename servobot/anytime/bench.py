@@ -3,18 +3,20 @@
 ``python -m servobot.anytime.bench --navigation FILE --out runs/anytime_bench --seeds 0 1
 [--table paper|PATH] [--populations 3] [--generations 128] [--population-size 128]
 [--every 32] [--top 2] [--physics-starts 2] [--physics-steps 600] [--final-starts 20]
-[--methods none bias model] [--executor process] [--workers N] [--resume]``
+[--methods none bias model] [--envelope none|default|FILE.json] [--executor process]
+[--workers N] [--resume]``
 
 For each seed it runs ``servobot.anytime.run.run_anytime`` once per method into
 ``OUT/seed{s}/{method}`` (``none`` first: it is the others' baseline; the control measures
 the same punctuations without feeding them back, so its ``table_wall_s`` is the table-only
-run's wall time). Then, per method over all seeds: the finalists' inner coverage in physics
-and in the table world (20 fresh starts each) and their gap, the difference in physics from
-the control, the rank correlation (Spearman) between table and physics fitness over the
-tested genomes (pooled, and within each punctuation), the physics runs and their wall time,
-and the wall time against the table-only run. Writes ``OUT/bench.json``, ``OUT/bench.md``
-and ``OUT/figure_anytime_bench.png``; prints the Markdown table. ``--resume`` continues
-interrupted runs and reuses finished ones. See docs/anytime.md.
+run's wall time; every method evolves in ``--envelope``, SPEC §9). Then, per method over all
+seeds: the finalists' inner coverage in physics and in the table world (20 fresh starts each)
+and their gap, the difference in physics from the control, the rank correlation (Spearman)
+between table and physics fitness over the tested genomes (pooled, and within each
+punctuation), the physics runs and their wall time, and the wall time against the table-only
+run. Writes ``OUT/bench.json``, ``OUT/bench.md`` and ``OUT/figure_anytime_bench.png``; prints
+the Markdown table. ``--resume`` continues interrupted runs and reuses finished ones. See
+docs/anytime.md.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from infra.executors import EXECUTOR_SPECS, check_spec, make_executor
 from infra.io import atomic_write_json, atomic_write_text, read_json
 from servobot.anytime.report import label, mean_of
 from servobot.anytime.run import run_anytime
+from servobot.cli.options import add_envelope_option, envelope_from_args
 from servobot.validation.lone import load_checked_table
 
 GOAL_PP = 3.0
@@ -60,6 +63,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--physics-starts", type=int, default=2)
     p.add_argument("--physics-steps", type=int, default=600)
     p.add_argument("--final-starts", type=int, default=20)
+    add_envelope_option(p)
     p.add_argument("--resume", action="store_true")
     p.add_argument(
         "--executor", type=check_spec, default="process", metavar="|".join(EXECUTOR_SPECS)
@@ -74,6 +78,7 @@ def run_arms(args: argparse.Namespace) -> dict[int, dict[str, dict[str, Any]]]:
     if warning:
         print(warning, file=sys.stderr)
     nav = navigation_section(read_chromosome(args.navigation))
+    envelope = envelope_from_args(args)
     ex = make_executor(args.executor, args.workers)
     base = AnytimeSettings(
         every=args.every, top=args.top, physics_starts=args.physics_starts,
@@ -95,7 +100,7 @@ def run_arms(args: argparse.Namespace) -> dict[int, dict[str, dict[str, Any]]]:
                 folder, navigation=nav, table=table, ga=ga, executor=ex,
                 settings=dataclasses.replace(base, method=method),
                 baseline=None if method == "none" else args.out / f"seed{seed}" / "none",
-                resume=args.resume,
+                resume=args.resume, envelope=envelope,
             )  # fmt: skip
     return out
 
