@@ -63,12 +63,9 @@ def _evaluate_colony(genomes: np.ndarray, starts: np.ndarray, **kw: Any) -> Any:
     return evaluate_colony(genomes, starts, **kw)
 
 
-def colony_stage(
-    world: WorldSettings, colony: ColonySettings, navigation: np.ndarray, envelope: Envelope = NONE
-) -> Stage:
-    """The colony's ``Stage``: coverage mode, colony starts, colony squares as run fitness, in
-    ``envelope``."""
-    nav = _check_navigation(navigation)
+def check_capacity(world: WorldSettings, colony: ColonySettings) -> None:
+    """Refuse (``StageError`` naming ``--robots``) more robots than the coverage start region
+    holds reliably at the start separation (``evolve.starts.colony_capacity``)."""
     fit = colony_capacity(world, colony)
     if fit < colony.robots:
         raise StageError(
@@ -78,6 +75,15 @@ def colony_stage(
             f"at random jam there; at most {fit} robots fit every one of "
             f"{CAPACITY_REHEARSALS} rehearsed colony starts, so give --robots {fit} or fewer"
         )
+
+
+def colony_stage(
+    world: WorldSettings, colony: ColonySettings, navigation: np.ndarray, envelope: Envelope = NONE
+) -> Stage:
+    """The colony's ``Stage``: coverage mode, colony starts, colony squares as run fitness, in
+    ``envelope``."""
+    nav = _check_navigation(navigation)
+    check_capacity(world, colony)
     return Stage(
         "colony",
         "coverage",
@@ -225,4 +231,11 @@ def final_test(
     return out
 
 
-__all__ = ["FIGURE10_SEED", "colony_stage", "figure10_starts", "final_test", "run_colony_stage"]
+__all__ = [
+    "FIGURE10_SEED",
+    "check_capacity",
+    "colony_stage",
+    "figure10_starts",
+    "final_test",
+    "run_colony_stage",
+]

@@ -12,6 +12,7 @@ import rerun as rr
 
 from evolve.codec import read_chromosome
 from evolve.envelope import DEFAULT
+from evolve.population import save_generations
 from evolve.table import load_table
 from infra.rundir import RunDirError
 from servobot.cli.reproduce import main
@@ -31,9 +32,11 @@ TINY = ReproduceSettings(
     navigation_populations=1, navigation_population_size=6, navigation_generations=2,
     coverage_populations=2, coverage_population_size=6, coverage_generations=2, test_starts=4,
     validate_starts=2, validate_max_steps=6, validate_navigation_starts=2, robustness_starts=1,
-    robustness_steps=5, robustness_finalists=2, seed=3,
+    robustness_steps=5, robustness_finalists=2, colony_validate_starts=2, seed=3,
 )  # fmt: skip
 """Smaller than --quick: seconds, but every stage and file of a full run."""
+COLONY_ARGV = ["--quick", "--robots", "3", "--workers", "1", "--no-progress"]
+"""``servobot reproduce --quick --robots 3`` (made tiny: ``quick_settings`` patched to TINY)."""
 
 
 @pytest.fixture(scope="module")
@@ -51,6 +54,16 @@ def envelope_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
         mp.setattr("servobot.reproduce.run.quick_settings", lambda: TINY)
         argv = ["--out", str(out), "--quick", "--envelope", "default", "--workers", "1"]
         assert main([*argv, "--no-progress"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def colony_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A tiny run through the command line with ``--robots 3``: every stage, then the colony's."""
+    out = tmp_path_factory.mktemp("reproduce-colony")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("servobot.reproduce.run.quick_settings", lambda: TINY)
+        assert main(["--out", str(out), *COLONY_ARGV]) == 0
     return out
 
 
@@ -278,3 +291,96 @@ def test_force_would_delete_exactly_the_files_a_run_wrote(run_dir: tuple[Path, d
     out, _ = run_dir
     written = {p for p in out.rglob("*") if p.is_file() and p.name != LOCK_FILE}
     assert set(owned_files(out, [*REPRODUCE_FILES, RECORD_FILE])) == written
+
+
+def test_colony_stages_evolve_validate_and_report(colony_dir: Path) -> None:
+    out, r = colony_dir, 3
+    assert json.loads((out / "settings.json").read_text())["ReproduceSettings"]["robots"] == r
+    # The colony evolved with the coverage stage's budget: Figure 9 at every saved generation.
+    summ = json.loads((out / "colony" / "summary.json").read_text())
+    gens = save_generations(TINY.coverage_ga())
+    assert summ["robots"] == r and summ["generations"] == list(gens)
+    assert summ["generations"][-1] == TINY.coverage_generations
+    fig9 = np.asarray(summ["figure9_inner_percent"])
+    assert fig9.shape == (TINY.coverage_populations, len(gens))
+    assert np.all((fig9 >= 0) & (fig9 <= 100))
+    assert (out / "colony" / "figure9.png").stat().st_size > 0
+    info = json.loads((out / "colony" / "done.json").read_text())["info"]
+    assert info["robots"] == r and len(info["final_test"]) == TINY.coverage_populations
+    # Each colony finalist in physics with R robots, from the same seeded colony starts.
+    starts = np.asarray(json.loads((out / "colony_validation/starts.json").read_text())["starts"])
+    assert starts.shape == (TINY.colony_validate_starts, r, 3)
+    val = json.loads((out / "colony_validation" / "done.json").read_text())["info"]
+    assert set(val["colony_finalists"]) == {str(k) for k in range(TINY.coverage_populations)}
+    for k, f in val["colony_finalists"].items():
+        assert f["runs_ok"] == f["starts"] == TINY.colony_validate_starts
+        for what in ("docks", "station_waits"):
+            assert all(len(f[what][w]) == r for w in ("table", "physics"))
+            assert all(v >= 0 for w in ("table", "physics") for v in f[what][w])
+        assert np.isfinite(f["gap_inner_pp"])
+        assert f["gap_inner_pp"] == pytest.approx(
+            f["table_inner_percent"] - f["physics_inner_percent"]
+        )
+        sub = out / "colony_validation" / f"pop{k}"
+        rep = json.loads((sub / "report.json").read_text())
+        assert rep["summary"]["robots"] == r and rep["settings"]["max_steps"] == 6
+        got = [[[p[a] for a in "xyh"] for p in run["start"]] for run in rep["runs"]]
+        np.testing.assert_allclose(got, starts, rtol=0, atol=1e-9)
+        for j in range(TINY.colony_validate_starts):
+            assert (sub / f"run{j}.rrd").stat().st_size > 0
+            assert (sub / f"tracks{j}.png").exists()
+    assert np.isfinite(val["gap_inner_pp"])
+    text = (out / "REPORT.md").read_text()
+    for line in ("| colony |", "| colony_validation |", "## 6. A colony of 3 robots",
+                 "](colony/figure9.png)", "](colony_validation/pop1/tracks0.png)",
+                 "`rerun colony_validation/pop0/run0.rrd` (2 recordings in "
+                 "`colony_validation/pop0/`)", f"**{val['gap_inner_pp']:+.1f}**",
+                 "## 7. Recordings", "## 8. Settings", '"robots": 3'):  # fmt: skip
+        assert line in text
+    # Resumable: the same command again skips every stage, the colony's too.
+    marker = (out / "colony_validation" / "done.json").read_text()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("servobot.reproduce.run.quick_settings", lambda: TINY)
+        assert main(["--out", str(out), *COLONY_ARGV]) == 0
+    assert (out / "colony_validation" / "done.json").read_text() == marker
+    from infra.rundir import LOCK_FILE, RECORD_FILE, owned_files
+    from servobot.reproduce.run import REPRODUCE_FILES
+
+    written = {p for p in out.rglob("*") if p.is_file() and p.name != LOCK_FILE}
+    assert set(owned_files(out, [*REPRODUCE_FILES, RECORD_FILE])) == written
+
+
+def test_colony_settings_leave_the_reproduction_as_it_was() -> None:
+    colony = dataclasses.replace(TINY, robots=3)
+    # Without a colony (robots 1, the default): no colony stage, settings and keys as before.
+    assert TINY.robots == 1 and TINY.colony() is None and "colony" not in TINY.stages()
+    assert not {"robots", "colony_blocking", "colony_validate_starts"} & set(TINY.to_dict())
+    for stage in ("calibration", "navigation", "coverage", "validation", "robustness"):
+        assert stage_key(colony, stage) == stage_key(TINY, stage)
+    # The colony stages depend on the stages up to coverage and their own fields only.
+    key = stage_key(colony, "colony_validation")
+    assert key["robots"] == 3 and key["colony_blocking"] == "cancel"
+    assert key["colony_validate_starts"] == 2 and "coverage_generations" in key
+    assert "robustness_starts" not in key and "validate_starts" not in key
+    assert colony.colony().robots == 3 and colony.stages()[-2:] == ("colony", "colony_validation")
+    assert (ReproduceSettings().colony_validate_starts, quick_settings().colony_validate_starts) \
+        == (3, 1)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--robots", "0"], "--robots must be an integer ≥ 1, got 0"),
+        (["--robots", "-2"], "--robots must be an integer ≥ 1, got -2"),
+        (["--blocking", "slide"], "--blocking is an option of the colony stages"),
+        (["--robots", "1", "--blocking", "slide"], "--blocking is an option"),
+        (["--robots", "40"], "--robots 40: cannot place robot"),
+    ],
+)
+def test_cli_rejects_bad_robots(
+    argv: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "x"
+    assert main(["--out", str(out), "--quick", *argv, "--no-progress"]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()  # refused before any stage

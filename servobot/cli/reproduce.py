@@ -11,7 +11,9 @@ import argparse
 import os
 from pathlib import Path
 
+from evolve.settings import BLOCKING_RULES
 from infra.bounds import check_int
+from infra.errors import InputError
 from servobot.cli.options import (
     add_envelope_option,
     add_executor_option,
@@ -31,7 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="servobot reproduce",
         description="Calibrate, evolve navigation and coverage, validate the finalists in "
-        "physics, run them through the physics test matrix, and write REPORT.md with figures "
+        "physics, run them through the physics test matrix (with --robots R: evolve coverage "
+        "for a colony of R and validate it in physics), and write REPORT.md with figures "
         "and .rrd recordings. Resumable: rerun the same command after an interruption.",
     )
     p.add_argument(
@@ -49,6 +52,21 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         default=None,
         help="validation starts per finalist (default 20; --quick 3)",
+    )
+    p.add_argument(
+        "--robots",
+        type=int,
+        default=None,
+        metavar="R",
+        help="R ≥ 2: add the colony stages, coverage learned by a colony of R robots sharing "
+        "the station and its physics validation with R robots (SPEC §7; default 1: none)",
+    )
+    p.add_argument(
+        "--blocking",
+        choices=BLOCKING_RULES,
+        default=None,
+        help="with --robots R: the table world's rule for a move another robot blocks, "
+        "cancel (SPEC §7, default) or slide (docs/colony.md)",
     )
     add_executor_option(
         p, None, "process, serial with --workers 1 (validation and robustness runs)"
@@ -70,9 +88,13 @@ def _run(args: argparse.Namespace) -> int:
         check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
     if args.seed is not None:
         check_int(args.seed, "--seed", lo=0)
+    if args.robots is not None:
+        check_int(args.robots, "--robots", lo=1)
+    if args.blocking is not None and (args.robots or 1) < 2:
+        raise InputError("--blocking is an option of the colony stages (--robots R, R ≥ 2)")
     settings = resolve_settings(
         quick=args.quick, seed=args.seed, validate_starts=args.validate_starts,
-        model=args.model, envelope=args.envelope,
+        model=args.model, envelope=args.envelope, robots=args.robots, blocking=args.blocking,
     )  # fmt: skip
     bars = GenerationBars(enabled=not args.no_progress)
     per_world = 0 if settings.model is not None else settings.robustness_starts
@@ -80,7 +102,9 @@ def _run(args: argparse.Namespace) -> int:
     runs = RunBar(  # shown at its first run, not before the checks
         "physics runs", not args.no_progress,
         total=settings.coverage_populations * settings.validate_starts
-        + settings.matrix_finalists() * matrix + 2 * settings.validate_navigation_starts,
+        + settings.matrix_finalists() * matrix + 2 * settings.validate_navigation_starts
+        + (settings.coverage_populations * settings.colony_validate_starts
+           if settings.colony() is not None else 0),
     )  # fmt: skip
     try:
         res = reproduce(

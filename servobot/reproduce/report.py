@@ -19,7 +19,7 @@ from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE, load_table
 from infra.io import atomic_write_text
 from servo_mj.robot.model import model_label
-from servobot.reproduce.settings import STAGES, ReproduceSettings
+from servobot.reproduce.settings import ReproduceSettings
 from servobot.robustness.report import MEAN_AND_DROP, matrix_table
 
 
@@ -171,10 +171,24 @@ def _coverage_section(out: Path) -> list[str]:
     lines += _img(out, out / "coverage" / "figure9.png", "Figure 9: inner coverage by generation")
     if summ is None:
         return [*lines, "*(coverage/summary.json not written)*", ""]
+    lines += _figure9_lines(summ, "best individual")
+    lines += ["Figure 10: each population's final best from (415, 252, 98°).", ""]
+    for f in summ.get("figure10", []):
+        k = f["population"]
+        desc = ", ".join(f"{a} {f[a]}" for a in ("squares", "docks", "end") if a in f)
+        lines += [f"Population {k}: {desc}", ""]
+        lines += _img(out, out / "coverage" / f"figure10_pop{k}.png", f"Figure 10 pop {k}")
+    return lines
+
+
+def _figure9_lines(summ: dict[str, Any], who: str) -> list[str]:
+    """A stage's Figure 9 (``summary.json``): the last generation's mean and per population,
+    in the envelope too when it evolved in one, and the table by generation; ``who``: whose
+    inner coverage it is."""
     gens = summ["generations"]
     inner = np.asarray(summ["figure9_inner_percent"])
-    lines += [
-        f"Figure 9 at generation {gens[-1]} (best individual on {summ['test_starts']} fresh "
+    lines = [
+        f"Figure 9 at generation {gens[-1]} ({who} on {summ['test_starts']} fresh "
         f"starts, % of the 64 inner squares): mean **{summ['final_mean_inner_percent']:.1f}%**"
         "; per population " + ", ".join(f"{k}: {v:.1f}%" for k, v in enumerate(inner[:, -1])) + ".",
         "",
@@ -204,13 +218,7 @@ def _coverage_section(out: Path) -> list[str]:
             + f" | {inner[:, j].mean():.1f} |"
             + (f" {e_mean[j]:.1f} |" if env and j < len(e_mean) else "")
         )
-    lines += ["", "Figure 10: each population's final best from (415, 252, 98°).", ""]
-    for f in summ.get("figure10", []):
-        k = f["population"]
-        desc = ", ".join(f"{a} {f[a]}" for a in ("squares", "docks", "end") if a in f)
-        lines += [f"Population {k}: {desc}", ""]
-        lines += _img(out, out / "coverage" / f"figure10_pop{k}.png", f"Figure 10 pop {k}")
-    return lines
+    return [*lines, ""]
 
 
 def _validation_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Path]]:
@@ -298,6 +306,97 @@ def _robustness_section(out: Path, s: ReproduceSettings) -> list[str]:
     return lines
 
 
+COLONY_RECORDINGS = (
+    "A colony's (`colony_validation/`) holds every robot in its colour and a `colony` tab with "
+    'the station\'s and each robot\'s states (docs/colony.md, "Recordings").'
+)
+"""The Recordings section's line on the colony validation's recordings."""
+
+
+def _number(value: float | None, fmt: str) -> str:
+    """``value`` formatted, ``—`` for None."""
+    return "—" if value is None else f"{value:{fmt}}"
+
+
+def _robots_cell(values: list[float], fmt: str = ".2f") -> str:
+    """Each robot's number, robot 0 first (``—`` when none)."""
+    return " / ".join(f"{v:{fmt}}" for v in values) or "—"
+
+
+def _colony_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Path]]:
+    """The colony stages: the colony's Figure 9 and table-world test, its finalists in physics
+    (gap, each robot's docks and station waits, tracks), and their recordings."""
+    r = s.robots
+    lines = [
+        f"## 6. A colony of {r} robots sharing the station (SPEC §7)",
+        "",
+        f"Coverage learned by a colony of {r} (`servobot evolve colony`; table-world blocking "
+        f"`{s.colony_blocking}`), with the coverage stage's budget and test starts, the "
+        "navigation section `navigation/best.txt` fixed, on the calibrated table. Colony inner "
+        "% = squares reached by any robot / 64.",
+        "",
+        *_img(out, out / "colony" / "figure9.png", "Figure 9 of the colony"),
+    ]
+    rrds: list[Path] = []
+    summ = _load_json(out / "colony" / "summary.json")
+    if summ is None:
+        return [*lines, "*(colony/summary.json not written)*", ""], rrds
+    lines += _figure9_lines(summ, f"best individual as a colony of {r}")
+    lines += [
+        f"Each population's final best on the {summ['test_starts']} colony test starts "
+        "(table world), and the same best alone from robot 0's poses:",
+        "",
+        "| population | colony inner % | per robot inner % | docks per robot | station waits "
+        "per run | blocked moves per run | alone inner % |",
+        "|---|---|---|---|---|---|---|",
+        *(f"| {t['population']} | {t['colony_inner_percent']:.1f} | "
+          f"{t['robot_inner_percent']:.1f} | {t['docks_per_robot']:.2f} | "
+          f"{t['station_waits_per_run']:.2f} | {t['collisions_per_run']:.2f} | "
+          f"{t['one_robot_inner_percent']:.1f} |" for t in summ["final_test"]),
+        "",
+        "Tracks of every robot from one colony start: `colony/figure10_pop{k}.png`.",
+        "",
+    ]  # fmt: skip
+    folder = out / "colony_validation"
+    done = _load_json(folder / "done.json")
+    info = (done or {}).get("info", {})
+    lines += [
+        f"### The colony in physics ({r} ServoBots in one MuJoCo arena)",
+        "",
+        f"Each colony finalist (`colony/best_pop{{k}}.txt`) from the same "
+        f"{s.colony_validate_starts} seeded colony starts (`colony_validation/starts.json`), "
+        f"up to {s.validate_max_steps} steps per robot, in the table world and in physics "
+        "(`servobot validate --robots`). Gap = table − physics over the runs whose physics "
+        "finished; docks and station waits: each robot's mean per run, robot 0 first.",
+        "",
+    ]
+    if "colony_finalists" not in info:
+        return [*lines, "*(colony_validation not finished)*", ""], rrds
+    lines += [
+        "| finalist | runs ok | table inner % | physics inner % | gap (pp) | docks per robot, "
+        "table | physics | station waits per robot, table | physics | physics errors |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for k, f in info["colony_finalists"].items():
+        t_in, p_in, gap = f["table_inner_percent"], f["physics_inner_percent"], f["gap_inner_pp"]
+        lines.append(
+            f"| {k} | {f['runs_ok']}/{f['starts']} | {_number(t_in, '.1f')} | "
+            f"{_number(p_in, '.1f')} | {_number(gap, '+.1f')} | "
+            f"{_robots_cell(f['docks']['table'])} | {_robots_cell(f['docks']['physics'])} | "
+            f"{_robots_cell(f['station_waits']['table'])} | "
+            f"{_robots_cell(f['station_waits']['physics'])} | {f['physics_errors']} |"
+        )
+    if info.get("gap_inner_pp") is not None:
+        lines.append(f"| **all** | | | | **{info['gap_inner_pp']:+.1f}** | | | | | |")
+    lines += ["", "Tracks from the first colony start (table world left, physics right):", ""]
+    for k in info["colony_finalists"]:
+        sub = folder / f"pop{k}"
+        lines += _img(out, sub / "tracks0.png", f"colony finalist {k}: tracks")
+        rrds += sorted(sub.glob("run*.rrd"), key=lambda p: int(p.stem[3:] or 0))
+    lines += ["Per-run and per-robot details: `colony_validation/pop{k}/report.md`.", ""]
+    return lines, rrds
+
+
 def finalists_phrase(s: ReproduceSettings) -> str:
     """Which finalists the matrix ran: all of them, or the best n by Figure 9."""
     n = s.matrix_finalists()
@@ -346,7 +445,7 @@ def write_report(
         "| stage | wall time | this invocation |",
         "|---|---|---|",
     ]
-    for name in STAGES:
+    for name in s.stages():
         st = stages.get(name)
         if st is None:
             lines.append(f"| {name} | — | not reached |")
@@ -365,9 +464,15 @@ def write_report(
     vlines, rrds = _validation_section(out, s)
     lines += vlines
     lines += _robustness_section(out, s)
+    section = 6
+    if s.colony() is not None:
+        clines, crrds = _colony_section(out, s)
+        lines += clines
+        rrds += crrds
+        section += 1
     if (out / "calibration" / "calibration.rrd").exists():
         rrds.insert(0, out / "calibration" / "calibration.rrd")
-    lines += ["## 6. Recordings", "", "Open any run in the rerun viewer:", ""]
+    lines += [f"## {section}. Recordings", "", "Open any run in the rerun viewer:", ""]
     by_folder: dict[str, list[str]] = {}
     for p in rrds:
         by_folder.setdefault(p.parent.relative_to(out).as_posix(), []).append(p.name)
@@ -380,8 +485,9 @@ def write_report(
         "",
         "Each holds the arena, the robot's bodies, the physics (orange) and table (blue) tracks,",
         "squares as reached, power, sensors, mode and squares over time, and the instructions.",
+        *([COLONY_RECORDINGS] if s.colony() is not None else []),
         "",
-        "## 7. Settings",
+        f"## {section + 1}. Settings",
         "",
         "```json",
         json.dumps({"ReproduceSettings": s.to_dict()}, indent=2),

@@ -11,7 +11,11 @@ validation resumes finalist by finalist)::
                    DIR/validation/navigation_{fresh,handoffs}/report.{json,md}  (the section)
     5 robustness   DIR/robustness/robustness.{json,md,png}, runs/{world}/best_pop{k}/
                    (the finalists × every built-in physics world: the test matrix)
-    6 report       DIR/REPORT.md                                      (always rewritten)
+    6 colony       DIR/colony/best_pop{k}.txt, figure9.*, figure10_pop{k}.png, summary.json
+                   (only with robots R ≥ 2: coverage learned by a colony of R, SPEC §7)
+    7 colony_validation  DIR/colony_validation/pop{k}/report.{json,md}, tracks{j}.png,
+                   run{j}.rrd (each colony finalist as a colony of R: table vs physics)
+    8 report       DIR/REPORT.md                                      (always rewritten)
 
 An envelope (``ReproduceSettings.envelope``, SPEC §9) makes navigation and coverage evolve in a
 varied table world; their summaries then carry the envelope's figures (``envelope_*``) beside
@@ -50,12 +54,13 @@ from calibration.calibrate import (
     calibration_need,
 )
 from evolve.codec import read_chromosome
+from evolve.colony_stage import check_capacity, run_colony_stage
 from evolve.envelope import NONE, Envelope
 from evolve.handoff import PosesError, read_poses
 from evolve.population import OnGeneration
 from evolve.settings import WorldSettings, settings_json
 from evolve.stages import STAGE_FILES, run_coverage, run_navigation, stage_need
-from evolve.starts import coverage_starts
+from evolve.starts import colony_starts, coverage_starts
 from evolve.table import GaitTable, load_table
 from infra.bounds import Need, check_need, is_finite_number
 from infra.executors import Executor, make_executor
@@ -73,6 +78,8 @@ from servobot.reproduce.settings import (
     stage_key,
 )
 from servobot.robustness.matrix import ROBUSTNESS_FILES, run_matrix
+from servobot.validation.colony import colony_kind
+from servobot.validation.colony_report import per_robot
 from servobot.validation.lone import (
     VALIDATION_FILES,
     ValidationError,
@@ -85,6 +92,8 @@ from servobot.validation.lone import (
 
 VALIDATION_SEED_WORD = 2
 """Second entropy word of the validation starts' SeedSequence (stages use 0 and 1)."""
+COLONY_STARTS_WORD = 2
+"""Third entropy word of the colony validation's starts (the navigation section's: 1)."""
 NAVIGATION_VALIDATIONS = ("navigation_fresh", "navigation_handoffs")
 """Folders of the navigation section's physics validations: from fresh navigation starts, and
 from the coverage finalists' hand-off poses."""
@@ -96,10 +105,11 @@ REPRODUCE_FILES = (
     "REPORT.md", "figure8.png", f"calibration/{RECORDING_FILE}",
     *(f"{stage}/{f}" for stage in STAGES for f in (DONE, RECORD_FILE)),
     *(f"calibration/{f}" for f in CALIBRATION_FILES),
-    *(f"{stage}/{f}" for stage in ("navigation", "coverage") for f in STAGE_FILES),
-    "validation/starts.json",
+    *(f"{stage}/{f}" for stage in ("navigation", "coverage", "colony") for f in STAGE_FILES),
+    "validation/starts.json", "colony_validation/starts.json",
     *(f"validation/{sub}/{f}" for sub in ("pop*", *NAVIGATION_VALIDATIONS)
       for f in (DONE, RECORD_FILE, *VALIDATION_FILES)),
+    *(f"colony_validation/pop*/{f}" for f in (DONE, RECORD_FILE, *VALIDATION_FILES)),
     *(f"robustness/{f}" for f in ROBUSTNESS_FILES),
 )  # fmt: skip
 """Every file a reproduction writes under its folder besides ``settings.json``."""
@@ -159,7 +169,18 @@ def reproduce_need(s: ReproduceSettings, world: WorldSettings, workers: int | No
     if s.model is None:
         for _ in range(s.matrix_finalists() * len(ROBUSTNESS_WORLDS)):
             need += validation_need(s.robustness_starts, s.robustness_steps, workers, False)[0]
+    if s.colony() is not None:
+        need += stage_need(s.coverage_ga(), world.coverage_steps * s.robots)
+        for _ in range(s.coverage_populations):
+            need += colony_validation_need(s, workers)[0]
     return need
+
+
+def colony_validation_need(s: ReproduceSettings, workers: int | None) -> tuple[Need, int]:
+    """(Need, recording bytes) of one colony finalist's physics validation: its colony starts of
+    R robots × ``validate_max_steps`` steps each, recorded (as ``servobot validate --robots``)."""
+    return validation_need(s.colony_validate_starts, s.validate_max_steps * s.robots, workers,
+                           True)  # fmt: skip
 
 
 # --------------------------------------------------------------------------- the pipeline
@@ -303,19 +324,62 @@ class _Pipeline:
         outputs = [] if self.s.model is not None else [folder / "robustness.json"]
         self.stage("robustness", body, outputs)
 
-    def _finalist_validations(self) -> dict[str, Any]:
-        """The physics validation of each coverage finalist, for ``_validate_all``."""
-        s, folder = self.s, self.out / "validation"
-        starts = validation_starts(s, self.world)
+    def colony(self, table: GaitTable, navigation: np.ndarray) -> None:
+        """Coverage learned by a colony of R (SPEC §7, ``evolve.colony_stage``) into
+        ``DIR/colony``, as ``servobot evolve colony``: the coverage stage's GA budget, the
+        navigation section fixed, the envelope; resumes from its checkpoints."""
+        folder = self.out / "colony"
+
+        def body() -> dict[str, Any]:
+            summ = run_colony_stage(
+                self.out, navigation=navigation, table=table, ga=self.s.coverage_ga(),
+                world=self.world, colony=self.s.colony(), resume=True,
+                on_generation=self.on_generation, envelope=self.envelope,
+            )  # fmt: skip
+            return colony_info(summ) | _envelope_info(summ, "envelope_final_mean_inner_percent")
+
+        finalists = [folder / f"best_pop{k}.txt" for k in range(self.s.coverage_populations)]
+        self.stage("colony", body, [folder / "summary.json", *finalists])
+
+    def colony_validation(self, table: GaitTable) -> None:
+        """Each colony finalist as a colony of R in the table world and in physics (as
+        ``servobot validate --robots R --rrd``) into ``DIR/colony_validation/pop{k}``, from the
+        same seeded colony starts; resumes finalist by finalist."""
+        folder = self.out / "colony_validation"
+        n = self.s.coverage_populations
+
+        def body() -> dict[str, Any]:
+            todo = self._finalist_validations("colony_validation", "colony", self.s.colony())
+            res = self._validate_all(table, todo, "colony_validation")
+            failed = [k for k, r in res.items() if "error" in r]
+            if failed:
+                raise ReproduceError(f"colony validation failed for colony finalist "
+                                     f"{', '.join(failed)}; see the log above")  # fmt: skip
+            return {"finalists": res, **colony_validation_info(folder, n)}
+
+        self.stage("colony_validation", body, [folder / f"pop{k}" / "report.json"
+                                               for k in range(n)])  # fmt: skip
+
+    def _finalist_validations(
+        self, stage: str = "validation", source: str = "coverage", colony: Any = None
+    ) -> dict[str, Any]:
+        """The physics validation of each finalist ``DIR/{source}/best_pop{k}.txt`` into
+        ``DIR/{stage}/pop{k}``, every one from the stage's seeded starts
+        (``validation_starts``, saved as ``DIR/{stage}/starts.json``), for ``_validate_all``;
+        with a ``colony`` (``ColonySettings``), as colonies of its robots."""
+        s, folder = self.s, self.out / stage
+        starts = validation_starts(s, self.world, colony)
         atomic_write_json(folder / "starts.json", {"starts": starts.tolist(), "seed": s.seed})
+        what = "finalist" if colony is None else f"{source} finalist"
+        kind = {} if colony is None else {"kind": colony_kind(colony)}
         return {
             str(k): (
                 folder / f"pop{k}",
-                f"finalist {k}",
-                read_chromosome(self.out / "coverage" / f"best_pop{k}.txt"),
+                f"{what} {k}",
+                read_chromosome(self.out / source / f"best_pop{k}.txt"),
                 starts,
-                {"rrd": True, "max_steps": s.validate_max_steps,
-                 "meta": {"finalist": k, "source": f"coverage/best_pop{k}.txt"}},
+                {"rrd": True, "max_steps": s.validate_max_steps, **kind,
+                 "meta": {"finalist": k, "source": f"{source}/best_pop{k}.txt"}},
             )  # fmt: skip
             for k in range(s.coverage_populations)
         }
@@ -336,12 +400,14 @@ class _Pipeline:
                                            (None, powers), strict=True)  # fmt: skip
         }
 
-    def _validate_all(self, table: GaitTable, todo: dict[str, Any]) -> dict[str, Any]:
-        """Each validation ``name: (folder, what, bits, starts, options)``, every one's runs as
-        one batch on the executor. A validation that finished with these settings is skipped;
-        one without starts is noted; a bad input is that validation's ``error`` and does not
-        stop the others."""
-        key = stage_key(self.s, "validation")
+    def _validate_all(
+        self, table: GaitTable, todo: dict[str, Any], stage: str = "validation"
+    ) -> dict[str, Any]:
+        """Each validation ``name: (folder, what, bits, starts, options)`` of ``stage``, every
+        one's runs as one batch on the executor. A validation that finished with these
+        settings is skipped; one without starts is noted; a bad input is that validation's
+        ``error`` and does not stop the others."""
+        key = stage_key(self.s, stage)
         results: dict[str, Any] = {}
         plans: dict[str, tuple[Path, Any]] = {}
         for name, (sub, what, bits, starts, options) in todo.items():
@@ -372,6 +438,47 @@ def _envelope_info(summary: dict[str, Any], figure: str) -> dict[str, Any]:
     if "envelope" not in summary:
         return {}
     return {"envelope": summary["envelope"], figure: summary[figure]}
+
+
+def colony_info(summary: dict[str, Any]) -> dict[str, Any]:
+    """The colony stage's done record: R, Figure 9's final colony inner % (mean and per
+    population), the same bests alone, and per population the table world's docks per robot
+    and station waits per run on the test starts (``evolve.colony_stage.final_test``)."""
+    keys = ("docks_per_robot", "station_waits_per_run", "robot_inner_percent")
+    return {
+        "robots": summary["robots"],
+        "final_mean_inner_percent": summary["final_mean_inner_percent"],
+        "final_inner_percent": summary["final_inner_percent"],
+        "one_robot_final_mean_inner_percent": summary["one_robot_final_mean_inner_percent"],
+        "final_test": [{k: t[k] for k in ("population", *keys)} for t in summary["final_test"]],
+    }
+
+
+def colony_validation_info(folder: Path, n: int) -> dict[str, Any]:
+    """The colony validation's numbers (its done record; REPORT.md shows them): per colony
+    finalist ``k`` (``folder/pop{k}/report.json``) the colony inner % in each world and the gap
+    table − physics (pp), both over the runs whose physics finished (None when none did), each
+    robot's docks and station waits per run in each world (``per_robot``), physics errors;
+    ``gap_inner_pp``: the mean gap over the finalists that have one."""
+    finalists: dict[str, Any] = {}
+    for k in range(n):
+        rep = read_json(folder / f"pop{k}" / "report.json", what="colony validation report",
+                        error=ReproduceError)  # fmt: skip
+        sm = rep["summary"]
+        gap = sm.get("gap", {})
+        finalists[str(k)] = {
+            "runs_ok": sm["physics_ok"],
+            "starts": sm["starts"],
+            "table_inner_percent": sm["table_paired"].get("inner_pct"),
+            "physics_inner_percent": sm["physics"].get("inner_pct"),
+            "gap_inner_pp": gap["inner_pct_pp"] if gap.get("runs") else None,
+            "docks": per_robot(rep, "docks"),
+            "station_waits": per_robot(rep, "station_waits"),
+            "physics_errors": sm["physics_errors"],
+        }
+    gaps = [f["gap_inner_pp"] for f in finalists.values() if f["gap_inner_pp"] is not None]
+    return {"colony_finalists": finalists,
+            "gap_inner_pp": float(np.mean(gaps)) if gaps else None}  # fmt: skip
 
 
 def best_finalists(inner_percent: list[float], n: int) -> list[int]:
@@ -412,10 +519,19 @@ def navigation_validation_starts(
     return (fresh, *sample_poses(poses, powers, min(n, len(poses)), rng, world))
 
 
-def validation_starts(s: ReproduceSettings, world: WorldSettings) -> np.ndarray:
-    """The seeded coverage starts every finalist is validated from."""
-    seq = np.random.SeedSequence([int(s.seed), VALIDATION_SEED_WORD])
-    return coverage_starts(np.random.Generator(np.random.PCG64(seq)), s.validate_starts, world)
+def validation_starts(
+    s: ReproduceSettings, world: WorldSettings, colony: Any = None
+) -> np.ndarray:
+    """The seeded coverage starts every finalist is validated from ((N, 3)); with a
+    ``colony`` (``ColonySettings``), the ``colony_validate_starts`` colony starts every colony
+    finalist is validated from ((N, R, 3), ``evolve.starts.colony_starts``)."""
+    if colony is None:
+        seq = np.random.SeedSequence([int(s.seed), VALIDATION_SEED_WORD])
+        return coverage_starts(np.random.Generator(np.random.PCG64(seq)), s.validate_starts,
+                               world)  # fmt: skip
+    seq = np.random.SeedSequence([int(s.seed), VALIDATION_SEED_WORD, COLONY_STARTS_WORD])
+    rng = np.random.Generator(np.random.PCG64(seq))
+    return colony_starts(rng, s.colony_validate_starts, world, colony)
 
 
 def resolve_settings(
@@ -426,10 +542,17 @@ def resolve_settings(
     validate_starts: int | None = None,
     model: str | Path | None = None,
     envelope: str | Path | None = None,
+    robots: int | None = None,
+    blocking: str | None = None,
 ) -> ReproduceSettings:
     """``settings`` (else paper scale, or ``quick_settings()``) with the overrides applied
-    and checked (``check_settings``: a bad envelope file raises ``EnvelopeError``)."""
+    and checked (``check_settings``: a bad envelope file raises ``EnvelopeError``);
+    ``robots`` and ``blocking``: the colony stages' R and table-world blocking rule."""
     s = settings or (quick_settings() if quick else ReproduceSettings())
+    if robots is not None:
+        s = dataclasses.replace(s, robots=robots)
+    if blocking is not None:
+        s = dataclasses.replace(s, colony_blocking=blocking)
     if envelope is not None:
         s = dataclasses.replace(s, envelope=str(envelope))
     if model is not None:
@@ -461,14 +584,16 @@ def reproduce(
     """Run (or resume) every stage into ``out``; return ``{"stages", "report", "wall_s"}``.
 
     ``settings`` wins over ``quick``; ``seed``, ``validate_starts`` and ``envelope`` (``none``,
-    ``default`` or an envelope file, SPEC §9) override its fields.
+    ``default`` or an envelope file, SPEC §9) override its fields. With ``settings.robots``
+    R ≥ 2 the colony stages run after the others (more robots than the start region holds
+    are refused first, ``StageError``).
     ``executor`` runs the validation starts (default ``make_executor(None, workers)``: 1 =
     here, else a pool of ``workers`` processes, None = every core); calibration records its
     walks, so it runs in this process, and evolution runs here (the kernel uses every core).
     Each stage
     record says whether it ran now or was skipped as already done, and its wall time.
     ``on_generation`` (GA progress) and ``on_run`` (each finished physics run of the
-    validation and the robustness matrix) are the
+    validation, the robustness matrix and the colony validation) are the
     progress callbacks; ``log`` gets one line per stage event (default: stderr). ``force``
     deletes the files of a run made with other settings in ``out`` and starts afresh.
     """
@@ -477,6 +602,8 @@ def reproduce(
     s = resolve_settings(settings, quick=quick, seed=seed, validate_starts=validate_starts,
                          envelope=envelope)  # fmt: skip
     world = world or WorldSettings()
+    if s.colony() is not None:  # before any stage: more robots than the start region holds
+        check_capacity(world, s.colony())
     check_need(reproduce_need(s, world, workers), "the reproduction's budgets")
     t_all = time.perf_counter()
     doc = {"ReproduceSettings": s.to_dict(), **json.loads(settings_json(world))}
@@ -488,6 +615,8 @@ def reproduce(
             s.coverage_populations
             * validation_need(s.validate_starts, s.validate_max_steps, workers, True)[1]
         )
+        if s.colony() is not None:
+            disk += s.coverage_populations * colony_validation_need(s, workers)[1]
         check_free_space(out, disk, what="the validation recordings")
         ex = executor or make_executor(None, workers)
         run = _Pipeline(out, s, world, ex, log, on_generation, on_run)
@@ -497,6 +626,9 @@ def reproduce(
             run.coverage(table, navigation)
             run.validation(table)
             run.robustness()
+            if s.colony() is not None:
+                run.colony(table, navigation)
+                run.colony_validation(table)
         finally:  # the report says how far the run got, also when a stage failed
             total = time.perf_counter() - t_all
             try:
@@ -518,6 +650,8 @@ __all__ = [
     "reproduce_need",
     "resolve_settings",
     "best_finalists",
+    "colony_info",
+    "colony_validation_info",
     "robustness_info",
     "stage_key",
     "validation_starts",

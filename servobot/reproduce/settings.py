@@ -10,14 +10,19 @@ from typing import Any
 from calibration.calibrate import TABLE_FILE
 from calibration.measure import CalibrationSettings
 from evolve.envelope import NONE, Envelope, load_envelope
-from evolve.settings import GASettings, navigation_ga_settings
+from evolve.settings import BLOCKING_RULES, ColonySettings, GASettings, navigation_ga_settings
 from infra.errors import InputError
 from servo_mj.robot.model import check_model, model_sha256
 from servobot.robustness.matrix import RobustnessSettings
 from servobot.robustness.worlds import BUILT_IN
 
-STAGES = ("calibration", "navigation", "coverage", "validation", "robustness")
+COLONY_STAGES = ("colony", "colony_validation")
+"""The colony stages (SPEC §7), run only with ``ReproduceSettings.robots`` ≥ 2."""
+STAGES = ("calibration", "navigation", "coverage", "validation", "robustness", *COLONY_STAGES)
 """The stages of a reproduction, in order (the report is always rewritten)."""
+COLONY_FIELDS = ("robots", "colony_blocking", "colony_validate_starts")
+"""The settings of the colony stages: left out of ``ReproduceSettings.to_dict`` (so of
+``settings.json`` and every stage key) without a colony, as before they existed."""
 ROBUSTNESS_WORLDS = tuple(BUILT_IN)
 """The physics worlds of the robustness stage: every built-in world of the test matrix."""
 
@@ -90,6 +95,36 @@ class ReproduceSettings:
     model: str | None = None
     """The robot: None = the shipped ServoBot, else a model file (``servobot variant``) that
     the calibration measures and the validation walks."""
+    robots: int = 1
+    """Robots of the colony stages (SPEC §7), R. 1 (default): no colony stages, the
+    reproduction as before, bit for bit (``settings.json`` too: ``COLONY_FIELDS`` are left
+    out). R ≥ 2 adds, after robustness, ``colony`` (coverage learned by a colony of R sharing
+    the station, as ``servobot evolve colony``: the coverage stage's GA budget and test starts,
+    the navigation section of ``navigation/best.txt`` fixed, the calibrated table, the
+    envelope) and ``colony_validation`` (each colony finalist as a colony of R in physics, as
+    ``servobot validate --robots R``)."""
+    colony_blocking: str = ColonySettings().blocking
+    """The table world's rule for a move another robot blocks (``ColonySettings.blocking``):
+    ``cancel`` (SPEC §7) or ``slide``; the colony evolves under it and the colony validation's
+    table side runs it (physics blocks by contacts either way)."""
+    colony_validate_starts: int = 3
+    """Colony starts (R poses each, ``evolve.starts.colony_starts``, seeded) per colony
+    finalist in the physics colony validation, ``validate_max_steps`` gait steps per robot at
+    most. Default 3: 5 finalists × 3 = 15 colony runs. A colony-of-3 run costs about 6.6 lone
+    runs of physics (each robot step ≈ 2.2 lone gait cycles, the standing robots simulated
+    too: docs/colony.md, "Cost"), so ≈ 100 lone runs: the physics of the validation stage's
+    100 coverage runs, not more; the gap it measures is a mean over 15 colony runs (45 robot
+    runs), against 30 in docs/colony.md's measurement."""
+
+    def colony(self) -> ColonySettings | None:
+        """The colony of the colony stages; None without them (``robots`` < 2)."""
+        if self.robots < 2:
+            return None
+        return ColonySettings(robots=self.robots, blocking=self.colony_blocking)
+
+    def stages(self) -> tuple[str, ...]:
+        """The stages this reproduction runs, in order: the colony stages only with a colony."""
+        return STAGES if self.colony() is not None else STAGES[: -len(COLONY_STAGES)]
 
     def calibration(self) -> CalibrationSettings:
         """Settings of the calibration stage (the shipped gait parameters, no fit)."""
@@ -140,16 +175,22 @@ class ReproduceSettings:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The fields as a dict; without a colony, not ``COLONY_FIELDS``."""
+        d = dataclasses.asdict(self)
+        if self.colony() is None:
+            for f in COLONY_FIELDS:
+                del d[f]
+        return d
 
 
 def quick_settings(**overrides: Any) -> ReproduceSettings:
     """A first look in a few minutes on 2 cores: the paper's 5 populations but of 64
     individuals, 256 navigation and 128 coverage generations, 5 calibration cycles, and 3
     full-length (600-step) validation starts per finalist, so that docking and recharging
-    show in physics, 5 + 5 navigation runs, and a robustness matrix of 1 start of 300 steps
+    show in physics, 5 + 5 navigation runs, a robustness matrix of 1 start of 300 steps
     of the best finalist per world (6 runs, ≈ 30 % of the validation's physics steps: 1.3 ×
-    the wall time without the matrix was the budget)."""
+    the wall time without the matrix was the budget), and with a colony 1 colony start per
+    colony finalist (5 colony runs)."""
     base = ReproduceSettings(
         calibration_cycles=5,
         navigation_population_size=64,
@@ -161,6 +202,7 @@ def quick_settings(**overrides: Any) -> ReproduceSettings:
         robustness_starts=1,
         robustness_finalists=1,
         robustness_steps=300,
+        colony_validate_starts=1,
     )
     return dataclasses.replace(base, **overrides)
 
@@ -176,19 +218,32 @@ _STAGE_FIELDS: dict[str, tuple[str, ...]] = {
     "coverage": ("coverage_populations", "coverage_population_size", "coverage_generations"),
     "validation": ("validate_starts", "validate_max_steps", "validate_navigation_starts"),
     "robustness": ("robustness_starts", "robustness_steps", "robustness_finalists"),
+    "colony": ("robots", "colony_blocking"),
+    "colony_validation": ("colony_validate_starts", "validate_max_steps"),
 }
 _ENVELOPE_STAGES = STAGES[STAGES.index("navigation") :]
 """The stages an envelope affects: navigation, coverage and those after them."""
 
 
+def _depends_on(stage: str) -> tuple[str, ...]:
+    """The stages whose settings ``stage``'s result depends on, itself last: those before it;
+    the colony stages branch off after coverage (the colony evolves from the coverage stage's
+    budgets, not from the validation's or the matrix's)."""
+    if stage in COLONY_STAGES:
+        return (*STAGES[: STAGES.index("coverage") + 1],
+                *COLONY_STAGES[: COLONY_STAGES.index(stage) + 1])  # fmt: skip
+    return STAGES[: STAGES.index(stage) + 1]
+
+
 def stage_key(settings: ReproduceSettings, stage: str) -> dict[str, Any]:
-    """The settings a stage's result depends on: its own fields and those of earlier stages;
+    """The settings a stage's result depends on: its own fields and those of earlier stages
+    (``_depends_on``);
     with a model file, its path and content hash too (every stage depends on the robot); from
     navigation on, an envelope other than ``none``: its spec and its fields (a stage of the
     exact world keeps the key it had before envelopes existed)."""
     d = settings.to_dict()
     key: dict[str, Any] = {}
-    for s in STAGES[: STAGES.index(stage) + 1]:
+    for s in _depends_on(stage):
         key.update({f: d[f] for f in _STAGE_FIELDS[s]})
     if settings.model is not None:
         key.update(model=settings.model, model_sha256=model_sha256(settings.model))
@@ -199,7 +254,8 @@ def stage_key(settings: ReproduceSettings, stage: str) -> dict[str, Any]:
 
 
 def check_settings(s: ReproduceSettings) -> None:
-    """Every budget is an integer ≥ 1 (settle cycles and seed ≥ 0), else ``ReproduceError``;
+    """Every budget is an integer ≥ 1 (settle cycles and seed ≥ 0; ``robots`` 1 = no colony),
+    and the blocking rule one of ``BLOCKING_RULES``, else ``ReproduceError``;
     a model file must be a usable ServoBot model (``check_model``); the envelope must load
     (``EnvelopeError`` naming it)."""
     if s.model is not None:
@@ -208,8 +264,11 @@ def check_settings(s: ReproduceSettings) -> None:
         raise ReproduceError(f"setting envelope must be none, default or a file, got "
                              f"{s.envelope!r}")  # fmt: skip
     s.envelope_value()
+    if s.colony_blocking not in BLOCKING_RULES:
+        raise ReproduceError(f"setting colony_blocking must be one of {', '.join(BLOCKING_RULES)}"
+                             f", got {s.colony_blocking!r}")  # fmt: skip
     for f in dataclasses.fields(s):
-        if f.name in ("model", "envelope"):
+        if f.name in ("model", "envelope", "colony_blocking"):
             continue
         v = getattr(s, f.name)
         low = 0 if f.name in ("calibration_settle_cycles", "seed") else 1
@@ -218,6 +277,8 @@ def check_settings(s: ReproduceSettings) -> None:
 
 
 __all__ = [
+    "COLONY_FIELDS",
+    "COLONY_STAGES",
     "ROBUSTNESS_WORLDS",
     "STAGES",
     "ReproduceError",

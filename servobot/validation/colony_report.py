@@ -81,6 +81,18 @@ def summarise_colony(
     )  # fmt: skip
 
 
+def per_robot(report: dict[str, Any], key: str) -> dict[str, list[float]]:
+    """Each robot's mean ``key`` of its robot records (``docks``, ``station_waits``, ...) over
+    a colony validation's runs, per world: ``{"table": [R], "physics": [R]}`` (physics: the
+    runs whose physics finished; an empty list when none did)."""
+    out = {}
+    for w in WORLDS:
+        recs = [r[w]["robots"] for r in report["runs"] if r.get(w)]
+        robots = len(recs[0]) if recs else 0
+        out[w] = [float(np.mean([rs[i][key] for rs in recs])) for i in range(robots)]
+    return out
+
+
 def _colony_cells(rec: dict[str, Any] | None) -> str:
     if rec is None:
         return "— | — | — | —"
@@ -209,6 +221,7 @@ __all__ = [
     "colony_run_rows",
     "colony_summary_lines",
     "colony_tracks_figure",
+    "per_robot",
     "robot_rows",
     "summarise_colony",
     "write_colony_report",
