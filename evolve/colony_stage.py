@@ -77,11 +77,24 @@ def check_capacity(world: WorldSettings, colony: ColonySettings) -> None:
         )
 
 
+def colony_stage_fitness(
+    ev: Any, starts: np.ndarray, world: WorldSettings, *, colony: ColonySettings
+) -> np.ndarray:
+    """Run fitness (P, S) of the colony stage: ``colony.fitness`` of each colony run
+    (``evolve.evaluation.colony_run_fitness``, robots' step limit ``world.coverage_steps``);
+    ``"squares"`` is ``coverage_run_fitness`` of the colony squares, bit for bit."""
+    if colony.fitness == "squares":
+        return coverage_run_fitness(ev, starts, world)
+    from evolve.evaluation import colony_run_fitness  # numba: loaded on first use
+
+    return colony_run_fitness(ev, colony, world.coverage_steps)
+
+
 def colony_stage(
     world: WorldSettings, colony: ColonySettings, navigation: np.ndarray, envelope: Envelope = NONE
 ) -> Stage:
-    """The colony's ``Stage``: coverage mode, colony starts, colony squares as run fitness, in
-    ``envelope``."""
+    """The colony's ``Stage``: coverage mode, colony starts, ``colony.fitness`` as run fitness
+    (default the colony squares), in ``envelope``."""
     nav = _check_navigation(navigation)
     check_capacity(world, colony)
     return Stage(
@@ -89,7 +102,7 @@ def colony_stage(
         "coverage",
         world.coverage_steps,
         functools.partial(colony_starts, colony=colony),
-        coverage_run_fitness,
+        functools.partial(colony_stage_fitness, colony=colony),
         nav,
         evaluate=functools.partial(_evaluate_colony, colony=colony),
         extra_settings=(colony,),
@@ -199,15 +212,18 @@ def final_test(
 
     Per population: colony and per-robot inner coverage (% of the inner squares), squares,
     docks per robot, station waits and blocked moves per run, colony steps, how the robots
-    ended (fractions), and the lone robot's inner coverage and squares.
+    ended (fractions), the robots live at the end per run (of R; ``LIVE_ENDS``) and the mean
+    run fitness under ``colony.fitness``, and the lone robot's inner coverage and squares.
     """
-    from evolve.evaluation import evaluate, evaluate_colony
+    from evolve.evaluation import colony_run_fitness, evaluate, evaluate_colony
 
     kw = dict(table=table.values, mode="coverage", start_power=world.start_power_v,
               settings=world)  # fmt: skip
     ev = evaluate_colony(genomes, test_starts, colony=colony, **kw)
     lone = evaluate(genomes, np.ascontiguousarray(test_starts[:, 0]), **kw)
     pct = 100.0 / world.inner_square_count
+    live = ev.live.sum(axis=2)
+    fitness = colony_run_fitness(ev, colony, world.coverage_steps)
     out = []
     for k in range(genomes.shape[0]):
         ends = np.bincount(ev.end[k].ravel(), minlength=len(END_NAMES)) / ev.end[k].size
@@ -223,6 +239,8 @@ def final_test(
                 "collisions_per_run": float(ev.collisions[k].sum(axis=1).mean()),
                 "colony_steps": float(ev.colony_steps[k].mean()),
                 "ends": {name: float(f) for name, f in zip(END_NAMES, ends, strict=True)},
+                "live_at_end_per_run": float(live[k].mean()),
+                "run_fitness": float(fitness[k].mean()),
                 "one_robot_inner_percent": float(pct * lone.inner_squares[k].mean()),
                 "one_robot_squares": float(lone.squares[k].mean()),
                 "one_robot_docks": float(lone.docks[k].mean()),
@@ -235,6 +253,7 @@ __all__ = [
     "FIGURE10_SEED",
     "check_capacity",
     "colony_stage",
+    "colony_stage_fitness",
     "figure10_starts",
     "final_test",
     "run_colony_stage",

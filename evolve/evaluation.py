@@ -16,7 +16,7 @@ from evolve import kernel
 from evolve.codec import FULL_GENES, SECTION_GENES, check_bits, decode
 from evolve.envelope import NONE, ROBOT_RADIUS, Envelope
 from evolve.geometry import pack_world
-from evolve.interpreter import MODES
+from evolve.interpreter import LIVE_ENDS, MODES
 from evolve.settings import ColonySettings, WorldSettings
 from evolve.table import validate_table
 from evolve.variation import KernelDraws, Variation
@@ -180,6 +180,29 @@ class ColonyEvaluation:
     station_waits: np.ndarray
     """(P, S, R) int64: each robot's steps that met the docking rule while another charged."""
 
+    @property
+    def live(self) -> np.ndarray:
+        """(P, S, R) bool: each robot live at the end of its run (end code in
+        ``evolve.interpreter.LIVE_ENDS``)."""
+        return np.isin(self.end, LIVE_ENDS)
+
+
+def colony_run_fitness(ev: ColonyEvaluation, colony: ColonySettings, max_steps: int) -> np.ndarray:
+    """(P, S) float64: each colony run's fitness under ``colony.fitness``, in squares
+    (``ColonySettings.fitness``); ``max_steps``: each robot's gait-step limit N of the runs.
+    Equal to ``evolve.interpreter.colony_fitness`` run by run, bit for bit (the same float
+    operations in the same order)."""
+    squares = np.asarray(ev.squares, dtype=np.float64)
+    n = ev.end.shape[2]
+    if colony.fitness == "alive":
+        live = ev.live.sum(axis=2)
+        return squares + float(colony.alive_weight) * live / n
+    if colony.fitness == "per_step":
+        steps = ev.steps.sum(axis=2)
+        scaled = squares * float(n * max_steps) / np.maximum(steps, 1)
+        return np.where(steps == 0, 0.0, scaled)
+    return squares
+
 
 def _check_colony_starts(
     starts: np.ndarray, settings: WorldSettings, colony: ColonySettings
@@ -267,4 +290,10 @@ def evaluate_colony(
     )
 
 
-__all__ = ["ColonyEvaluation", "Evaluation", "evaluate", "evaluate_colony"]
+__all__ = [
+    "ColonyEvaluation",
+    "Evaluation",
+    "colony_run_fitness",
+    "evaluate",
+    "evaluate_colony",
+]

@@ -67,6 +67,12 @@ from evolve.world import ColonyWorld, RobotView, World
 END_STEP_LIMIT, END_KILL_ZONE, END_POWER_EMPTY, END_BRANCH_LIMIT, END_DOCKED = 0, 1, 2, 3, 4
 END_NAMES = ("step limit", "kill zone", "power empty", "branch limit", "docked")
 """Display name of each end code."""
+LIVE_ENDS = (END_STEP_LIMIT, END_DOCKED)
+"""End codes of a robot *live at the end* of a colony run (``ColonySettings.fitness``
+``"alive"``, the colony's reports): it ran until its own gait-step limit, or the colony-step
+limit stopped it (walking, charging, backing up or waiting for the station: all end
+``END_STEP_LIMIT``), or it docked in a navigation run. Kill zone, power empty and branch limit
+end a robot that is no longer live (SPEC §7)."""
 MODES = ("coverage", "navigation")
 """Run modes: a 16-gene chromosome from gene 0, or an 8-gene navigation section alone."""
 DEFAULT_SETTINGS = WorldSettings()
@@ -426,6 +432,30 @@ class ColonyResult:
         """Station waits, all robots."""
         return sum(r.station_waits for r in self.robots)
 
+    @property
+    def live(self) -> int:
+        """Robots live at the end of the run (their end code in ``LIVE_ENDS``)."""
+        return sum(1 for r in self.robots if r.end in LIVE_ENDS)
+
+    @property
+    def steps(self) -> int:
+        """Gait steps, all robots (backup cycles included, charging steps not)."""
+        return sum(r.steps for r in self.robots)
+
+
+def colony_fitness(result: ColonyResult, colony: ColonySettings, max_steps: int) -> float:
+    """One colony run's fitness under ``colony.fitness`` (``ColonySettings.fitness``), in
+    squares; ``max_steps``: each robot's gait-step limit N of the run (``"per_step"``'s scale
+    R × N). The reference for ``evolve.evaluation.colony_run_fitness``, bit for bit."""
+    squares = float(result.squares)
+    n = len(result.robots)
+    if colony.fitness == "alive":
+        return squares + float(colony.alive_weight) * result.live / n
+    if colony.fitness == "per_step":
+        steps = result.steps
+        return 0.0 if steps == 0 else squares * float(n * max_steps) / steps
+    return squares
+
 
 def run_colony(
     bits: np.ndarray,
@@ -502,11 +532,13 @@ __all__ = [
     "END_NAMES",
     "END_POWER_EMPTY",
     "END_STEP_LIMIT",
+    "LIVE_ENDS",
     "MODES",
     "ColonyEvent",
     "ColonyResult",
     "RunResult",
     "StepEvent",
+    "colony_fitness",
     "run",
     "run_colony",
 ]

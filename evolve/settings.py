@@ -26,6 +26,9 @@ BLOCKING_RULES = ("cancel", "slide")
 """``ColonySettings.blocking`` values; a rule's index is its code in the numba kernel
 (``ColonySettings.blocking_code``)."""
 
+COLONY_FITNESSES = ("squares", "alive", "per_step")
+"""``ColonySettings.fitness`` values: what one colony run scores in the colony stage."""
+
 
 @dataclass(frozen=True)
 class WorldSettings:
@@ -201,8 +204,34 @@ class ColonySettings:
     Either way a blocked move (slid or cancelled) counts as a collision, costs power and is
     checked (squares, kill zone, docking) on the pose it leaves. Only the table world reads
     this; physics blocks by contacts (frictionless bumpers, which slide)."""
+    fitness: str = "squares"
+    """What one colony run scores in the colony stage (its run fitness; an individual's
+    fitness is the mean over its runs, SPEC §5) [chosen; issue 17, docs/colony.md "Learning to
+    share"]. Units: squares (of 100 in training, as the lone coverage fitness).
+
+    - ``"squares"`` (default, SPEC §7): the colony's squares, reached by any robot.
+    - ``"alive"``: the colony's squares + ``alive_weight`` × L / R, L the robots live at the
+      end of the run (``evolve.interpreter.LIVE_ENDS``: ended by their step limit, or by the
+      colony-step limit — walking, charging, backing up or waiting — or docked in navigation
+      mode; not live: kill zone, power empty, branch limit).
+    - ``"per_step"``: the colony's squares × (R × N) / T, T the gait steps all robots took
+      (backup cycles included, charging steps not), N the run's gait-step limit per robot
+      (``coverage_steps``, 600): squares per robot step, scaled so that a colony whose robots
+      all take their N steps scores exactly its squares; fewer steps for the same squares
+      score more. 0 when no robot took a step (no square is reached then)."""
+    alive_weight: float = 8.0
+    """``fitness = "alive"``: what keeping every robot live to the end adds to a run's
+    fitness, in squares (the units of the ``"squares"`` fitness, of 100): 8 = as much as 8
+    more squares; each live robot adds ``alive_weight`` / R [chosen]."""
 
     def __post_init__(self) -> None:
+        if self.fitness not in COLONY_FITNESSES:
+            allowed = ", ".join(repr(f) for f in COLONY_FITNESSES)
+            raise SettingsError(f"fitness must be one of {allowed}, got {self.fitness!r}")
+        w = self.alive_weight
+        number = isinstance(w, int | float) and not isinstance(w, bool)
+        if not (number and math.isfinite(w) and w >= 0):
+            raise SettingsError(f"alive_weight must be a finite number ≥ 0 (squares), got {w!r}")
         if self.blocking not in BLOCKING_RULES:
             allowed = ", ".join(repr(b) for b in BLOCKING_RULES)
             raise SettingsError(f"blocking must be one of {allowed}, got {self.blocking!r}")
@@ -234,12 +263,18 @@ class ColonySettings:
         return BLOCKING_RULES.index(self.blocking)
 
     def to_dict(self) -> dict[str, Any]:
-        """Every field, but ``blocking`` only when it is not ``"cancel"``: the record of a
-        colony made before the field existed (``settings.json``, checked on resume) is
-        unchanged, so such a run folder still resumes."""
+        """Every field, but ``blocking`` only when it is not ``"cancel"``, ``fitness`` only when
+        it is not ``"squares"`` and ``alive_weight`` only with ``fitness = "alive"`` (the one
+        fitness that reads it): the record of a colony made before these fields existed
+        (``settings.json``, checked on resume) is unchanged, so such a run folder still
+        resumes."""
         d = dataclasses.asdict(self)
         if self.blocking == "cancel":
             del d["blocking"]
+        if self.fitness == "squares":
+            del d["fitness"]
+        if self.fitness != "alive":
+            del d["alive_weight"]
         return d
 
 
@@ -360,6 +395,7 @@ def settings_json(*objs: Any) -> str:
 
 __all__ = [
     "BLOCKING_RULES",
+    "COLONY_FITNESSES",
     "SettingsError",
     "ColonySettings",
     "GASettings",

@@ -75,6 +75,9 @@ def test_report_layout_tracks_and_figure(station_run):
         s["table_paired"]["inner_pct"] - s["physics"]["inner_pct"]
     )
     assert doc["settings"]["ColonySettings"]["robots"] == 2
+    for world in ("table", "physics"):  # live at the end: step limit (or docked), of 2
+        live = sum(b["end"]["name"] in ("step limit", "docked") for b in run[world]["robots"])
+        assert s[world]["live_at_end_per_run"] == live
     assert (out / "tracks0.png").stat().st_size > 10_000
     md = (out / "report.md").read_text()
     assert "## Per robot" in md and "gap table − physics" in md

@@ -8,11 +8,13 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --out runs/evolve --resume
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
-    servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide]
+    servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide
+                                --colony-fitness squares|alive|per_step]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
-R, ``--blocking`` its table-world blocking rule). ``--navigation`` defaults to
+R, ``--blocking`` its table-world blocking rule, ``--colony-fitness`` what a colony run
+scores). ``--navigation`` defaults to
 ``DIR/navigation/best.txt``; a 16-gene file (e.g. a ``coverage/best_pop{k}.txt``) is
 accepted too and its genes 8–15, the navigation section, are used. Bad input (missing or
 malformed files, a bad gait table, impossible sizes, a run folder holding another run or in
@@ -35,7 +37,13 @@ from typing import Any
 
 import numpy as np
 
-from evolve.settings import BLOCKING_RULES, GASettings, WorldSettings, navigation_ga_settings
+from evolve.settings import (
+    BLOCKING_RULES,
+    COLONY_FITNESSES,
+    GASettings,
+    WorldSettings,
+    navigation_ga_settings,
+)
 from infra.bounds import check_int
 from infra.errors import InputError
 from infra.executors import Executor
@@ -100,6 +108,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="colony only: a move another robot blocks is cancelled (the robot keeps its "
         "pose; SPEC §7, default) or slides along the contact tangent (its component into "
         "the other robot removed, as frictionless physics bumpers do); docs/colony.md",
+    )
+    p.add_argument(
+        "--colony-fitness",
+        choices=COLONY_FITNESSES,
+        default=None,
+        help="colony only: what a colony run scores: its squares (default), its squares + "
+        "8 × the fraction of robots live at the end ('alive'), or its squares per robot step "
+        "scaled by R × 600 ('per_step'); ColonySettings.fitness, docs/colony.md",
     )
     p.add_argument(
         "--power",
@@ -227,15 +243,18 @@ def _print_colony(summary: dict[str, Any], out: Path) -> None:
         print(
             f"  population {t['population']}: per robot {t['robot_inner_percent']:.1f}%, "
             f"{t['docks_per_robot']:.1f} docks/robot, {t['station_waits_per_run']:.1f} station "
-            f"waits and {t['collisions_per_run']:.1f} blocked moves per run"
+            f"waits and {t['collisions_per_run']:.1f} blocked moves per run, "
+            f"{t['live_at_end_per_run']:.2f} of {summary['robots']} robots live at the end"
         )
     print(f"wrote {out / 'colony'} ({summary['wall_s']:.1f} s)")
 
 
-def _colony(robots: int | None, blocking: str | None) -> Any:
+def _colony(robots: int | None, blocking: str | None, fitness: str | None) -> Any:
     from evolve.settings import ColonySettings
 
     kw: dict[str, Any] = {} if blocking is None else {"blocking": blocking}
+    if fitness is not None:
+        kw["fitness"] = fitness
     if robots is None:
         return ColonySettings(**kw)
     check_int(robots, "--robots", lo=1)
@@ -250,7 +269,9 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
         raise CliError("--robots is an option of the colony stage")
     if args.blocking is not None and args.stage != "colony":
         raise CliError("--blocking is an option of the colony stage")
-    colony = _colony(args.robots, args.blocking)
+    if args.colony_fitness is not None and args.stage != "colony":
+        raise CliError("--colony-fitness is an option of the colony stage")
+    colony = _colony(args.robots, args.blocking, args.colony_fitness)
     ga = ga_settings(args)
     table = load_table(args.table)
     world = with_power_model(WorldSettings(), args.power, table)

@@ -2,9 +2,10 @@
 track figures and the files (``servobot.validation.colony`` collects the per-run records).
 
 Per world: the colony's squares and inner squares (% of the 64 inner squares, the union of
-the robots'), the robots' own coverage, docks, how they ended, station waits and blocked
-moves per run; in physics also the closest approach of two robot centres. The gap is table
-minus physics over the runs whose physics finished.
+the robots'), the robots' own coverage, docks, how they ended, the robots live at the end
+(``evolve.interpreter.LIVE_ENDS``), station waits and blocked moves per run; in physics also
+the closest approach of two robot centres. The gap is table minus physics over the runs whose
+physics finished.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from evolve.figures import DPI, draw_arena, draw_colony_robot
+from evolve.interpreter import LIVE_ENDS
 from evolve.settings import WorldSettings
 from infra.io import atomic_write
 from servobot.validation.report import (
@@ -63,6 +65,9 @@ def _world_summary(recs: list[dict[str, Any]], n_inner: int) -> dict[str, Any]:
         "station_waits_per_run": float(np.mean([c["station_waits"] for c in colony])),
         "collisions_per_run": float(np.mean([c["collisions"] for c in colony])),
         "ends": count_ends(robots),
+        "live_at_end_per_run": float(
+            np.mean([sum(b["end"]["code"] in LIVE_ENDS for b in r["robots"]) for r in recs])
+        ),
         "mean_wall_s": float(np.mean([r["wall_s"] for r in recs])),
     }
     lows = [r["min_distance_cm"] for r in recs if r.get("min_distance_cm") is not None]
@@ -147,7 +152,8 @@ def colony_summary_lines(report: dict[str, Any]) -> list[str]:
             f"colony inner {w['mean_inner_squares']:.2f} = {w['inner_pct']:.1f}% of "
             f"{s['inner_squares_total']} (squares {w['mean_squares']:.2f}); per robot inner "
             f"{w['robot_inner_pct']:.1f}%, docks {w['docks_per_robot']:.2f}, steps "
-            f"{w['robot_mean_steps']:.0f}, ends {w['ends']}; per run station waits "
+            f"{w['robot_mean_steps']:.0f}, ends {w['ends']}; per run live at the end "
+            f"{w['live_at_end_per_run']:.2f}, station waits "
             f"{w['station_waits_per_run']:.2f}, blocked moves {w['collisions_per_run']:.2f}, "
             f"colony steps {w['mean_colony_steps']:.0f}{closest}; {w['mean_wall_s']:.2f} s/run"
         )

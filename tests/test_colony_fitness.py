@@ -1,0 +1,312 @@
+"""The colony's run fitness (``ColonySettings.fitness``, issue 17 "learning to share"):
+``"squares"`` (SPEC §7), ``"alive"`` (+ ``alive_weight`` × live robots / R) and ``"per_step"``
+(squares × R·N / gait steps). Hand-worked colonies in the interpreter and the kernel, the
+kernel against the interpreter on random colonies for every option, ``"squares"`` against the
+fitness before the setting existed, one robot, the setting's validation and record, resume
+of a run folder written before the field existed, and the CLI option."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from chromosome_text import LIGHT_FOLLOWER, STILL, B, G, chrom, gene
+from test_colony_kernel import NEAR_STATION
+from test_stages import Interrupt
+
+from evolve import evaluate, evaluate_colony
+from evolve.codec import parse_chromosome, write_chromosome
+from evolve.colony_stage import colony_stage, run_colony_stage
+from evolve.evaluation import colony_run_fitness
+from evolve.interpreter import (
+    END_BRANCH_LIMIT,
+    END_KILL_ZONE,
+    END_STEP_LIMIT,
+    colony_fitness,
+    run_colony,
+)
+from evolve.settings import (
+    COLONY_FITNESSES,
+    ColonySettings,
+    GASettings,
+    SettingsError,
+    WorldSettings,
+    settings_json,
+)
+from evolve.stages import coverage_run_fitness
+from evolve.starts import colony_starts
+from evolve.table import PAPER_TABLE, load_table
+from evolve.world import TableColony
+from infra.errors import InputError
+
+WORLD = WorldSettings()
+STEP = np.zeros((16, 3))
+STEP[0] = (10.0, 0.0, 0.0)  # gait 0: 10 units straight ahead; every other gait stands still
+FORWARD = chrom(gene("00", G(0), G(0), G(0), G(0)))
+"""Every robot walks gait 0 forever."""
+DOCKER = chrom(gene("00", B(4, 0), G(0), G(0), G(0)), *[STILL] * 7, gene("00", *[G(0)] * 4))
+"""Low power (below 4.0 V) sends it to navigation gene 8 at once, which walks gait 0."""
+TWO = np.array([[440.0, 225.0, 90.0], [300.0, 275.0, 270.0]])
+"""Robot 0 faces east at x 440: x 450, 460 (square (9, 4), outer), 470, 480: kill zone (> 475)
+at its 4th step. Robot 1 faces west on the row y = 275 (square centres 25 + 50 i, reached
+within 19): x 290–260 square (5, 5), 250 none, 240–210 (4, 5), 190–160 (3, 5), ..."""
+
+
+def both(bits, starts, colony, *, max_steps, table=STEP, **kw):
+    """(interpreter result, {fitness: (interpreter value, kernel value)}) of one colony run."""
+    world = TableColony(table, starts, WORLD, colony)
+    res = run_colony(bits, world, colony=colony, max_steps=max_steps, **kw)
+    values = {}
+    for f in COLONY_FITNESSES:
+        c = dataclasses.replace(colony, fitness=f)
+        ev = evaluate_colony(bits[None], starts[None], table=table, mode="coverage",
+                             max_steps=max_steps, colony=c, **kw)  # fmt: skip
+        values[f] = (colony_fitness(res, c, max_steps), colony_run_fitness(ev, c, max_steps))
+        assert ev.live[0, 0].sum() == res.live
+    return res, values
+
+
+def assert_values(values, want):
+    for f, (interp, kern) in values.items():
+        assert interp == want[f], f
+        assert kern.shape == (1, 1) and kern[0, 0] == want[f], f
+
+
+# --------------------------------------------------------------------------- hand-worked
+
+
+def test_one_robot_killed_one_at_its_step_limit():
+    # Robot 0: 4 steps, square (9, 4), kill zone. Robot 1: 6 steps (its limit), squares (5, 5)
+    # and (4, 5). Colony: 3 squares (2 inner), 1 of 2 live, 10 gait steps.
+    res, values = both(FORWARD, TWO, ColonySettings(robots=2), max_steps=6)
+    assert [(r.steps, r.end, r.squares) for r in res.robots] == [
+        (4, END_KILL_ZONE, 1), (6, END_STEP_LIMIT, 2)
+    ]  # fmt: skip
+    assert (res.squares, res.inner_squares, res.live, res.steps) == (3, 2, 1, 10)
+    # squares 3; alive 3 + 8 · 1/2 = 7; per step 3 · (2 · 6) / 10 = 3.6
+    assert_values(values, {"squares": 3.0, "alive": 7.0, "per_step": 3.0 * 12 / 10})
+    w = ColonySettings(robots=2, fitness="alive", alive_weight=3.0)
+    assert colony_fitness(res, w, 6) == 3.0 + 1.5
+
+
+def test_the_colony_step_limit_leaves_every_robot_live():
+    # After 2 colony steps: robot 0 at x 460 (square (9, 4)), robot 1 at x 280 (square (5, 5)).
+    res, values = both(FORWARD, TWO, ColonySettings(robots=2, colony_step_limit=2), max_steps=6)
+    assert [r.end for r in res.robots] == [END_STEP_LIMIT] * 2
+    assert (res.squares, res.live, res.steps) == (2, 2, 4)
+    # alive 2 + 8 · 2/2 = 10; per step 2 · 12 / 4 = 6
+    assert_values(values, {"squares": 2.0, "alive": 10.0, "per_step": 6.0})
+
+
+def test_a_robot_charging_at_the_end_is_live():
+    # Robot 0 starts low on power at (450, 250) facing east, switches to navigation, docks
+    # after its first step (x 460) and charges for 10 colony steps; the colony-step limit 5
+    # ends the run while it charges. Robot 1 walks 5 steps west: square (5, 5).
+    starts = np.array([[450.0, 250.0, 90.0], [300.0, 275.0, 270.0]])
+    colony = ColonySettings(robots=2, colony_step_limit=5)
+    res, values = both(DOCKER, starts, colony, max_steps=20, start_power=3.95)
+    assert [(r.steps, r.docks, r.end) for r in res.robots] == [
+        (1, 1, END_STEP_LIMIT), (5, 0, END_STEP_LIMIT)
+    ]  # fmt: skip
+    assert (res.squares, res.live, res.steps) == (1, 2, 6)
+    # alive 1 + 8 = 9; per step 1 · (2 · 20) / 6
+    assert_values(values, {"squares": 1.0, "alive": 9.0, "per_step": 40.0 / 6})
+    # Without the limit it charges, backs up 4 cycles (gait 15 stands still here), walks
+    # east into the kill zone (x 480 after 2 more steps); robot 1 takes its 20 steps west:
+    # squares (5, 5), (4, 5), (3, 5), (2, 5).
+    res, values = both(DOCKER, starts, ColonySettings(robots=2), max_steps=20, start_power=3.95)
+    assert [(r.steps, r.docks, r.end) for r in res.robots] == [
+        (7, 1, END_KILL_ZONE), (20, 0, END_STEP_LIMIT)
+    ]  # fmt: skip
+    assert (res.squares, res.live, res.steps) == (4, 1, 27)
+    assert_values(values, {"squares": 4.0, "alive": 4.0 + 4.0, "per_step": 4.0 * 40 / 27})
+
+
+def test_no_step_taken_scores_zero_per_step():
+    # Every instruction a branch: each robot ends at the branch limit before any gait step.
+    looping = chrom(*[gene("00", B(0, 0), B(0, 0), B(0, 0), B(0, 0))] * 16)
+    res, values = both(looping, TWO, ColonySettings(robots=2), max_steps=6)
+    assert [r.end for r in res.robots] == [END_BRANCH_LIMIT] * 2
+    assert (res.squares, res.live, res.steps) == (0, 0, 0)
+    assert_values(values, {"squares": 0.0, "alive": 0.0, "per_step": 0.0})
+    # max_steps 0: no step allowed, every robot ends at its step limit, live
+    res, values = both(FORWARD, TWO, ColonySettings(robots=2), max_steps=0)
+    assert (res.squares, res.live, res.steps) == (0, 2, 0)
+    assert_values(values, {"squares": 0.0, "alive": 8.0, "per_step": 0.0})
+
+
+# --------------------------------------------------------------------------- kernel = interpreter
+
+
+def test_kernel_fitness_equals_the_interpreter_on_random_colonies():
+    """3,000 colony runs (half near the station, switching to navigation at once, so that
+    robots dock, charge and wait; a third under a colony-step limit that cuts charges):
+    every fitness of every run equal bit for bit."""
+    rng = np.random.default_rng(1717)
+    genomes = rng.integers(0, 2, size=(500, 16, 30), dtype=np.uint8)
+    genomes[:250, 0, :9] = [0, 0, 1, 1, 0, 0, 0, 0, 0]  # gene 0 ×∞, first: if low-power goto 8
+    plain, limited = ColonySettings(), ColonySettings(colony_step_limit=40)
+    spread = colony_starts(rng, 2, WORLD, plain)
+    near = colony_starts(rng, 2, NEAR_STATION, plain)
+    cases = [
+        (plain, np.concatenate([spread, near])),
+        (limited, colony_starts(rng, 2, NEAR_STATION, limited)),
+    ]
+    live_kinds, per_step_max, docked_live = set(), 0.0, 0
+    for colony, starts in cases:
+        kw = dict(table=PAPER_TABLE, mode="coverage", start_power=3.95, colony=colony)
+        ev = evaluate_colony(genomes, starts, **kw)
+        fits = {
+            f: colony_run_fitness(ev, dataclasses.replace(colony, fitness=f), WORLD.coverage_steps)
+            for f in COLONY_FITNESSES
+        }
+        np.testing.assert_array_equal(fits["squares"], ev.squares.astype(np.float64))
+        for i in range(genomes.shape[0]):
+            for s in range(starts.shape[0]):
+                res = run_colony(genomes[i], TableColony(PAPER_TABLE, starts[s], WORLD, colony),
+                                 colony=colony, start_power=3.95)  # fmt: skip
+                assert res.squares == ev.squares[i, s]
+                assert [r.end for r in res.robots] == ev.end[i, s].tolist()
+                for f in COLONY_FITNESSES:
+                    c = dataclasses.replace(colony, fitness=f)
+                    got = colony_fitness(res, c, WORLD.coverage_steps)
+                    assert got == fits[f][i, s], (f, i, s, got, fits[f][i, s])
+                live_kinds.add(res.live)
+                per_step_max = max(per_step_max, fits["per_step"][i, s])
+        if colony.colony_step_limit is not None:
+            docked_live = int(((ev.docks > 0) & ev.live).sum())
+    assert live_kinds == {0, 1, 2, 3}
+    assert per_step_max > 100 and docked_live > 10
+
+
+def test_squares_is_the_fitness_before_the_setting_bit_for_bit():
+    """The colony stage's run fitness under ``"squares"`` is ``coverage_run_fitness`` of the
+    colony evaluation (what it was before the setting), and a short stage writes the history
+    that the code before the setting wrote (recorded from main at c1a04be)."""
+    nav = parse_chromosome(LIGHT_FOLLOWER)
+    rng = np.random.default_rng(3)
+    stage = colony_stage(WORLD, ColonySettings(), nav)
+    sections = rng.integers(0, 2, size=(40, 8, 30), dtype=np.uint8)
+    starts = colony_starts(rng, 5, WORLD, ColonySettings())
+    ev = evaluate_colony(stage.genomes(sections), starts, table=PAPER_TABLE, mode="coverage")
+    got = stage.run_fitness(ev, starts, WORLD)
+    want = coverage_run_fitness(ev, starts, WORLD)
+    assert got.dtype == want.dtype == np.float64
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(got, ev.squares)
+
+
+HISTORY_BEFORE = """generation,best_fitness,mean_fitness,docked_fraction,unique
+0,13.8,6.84167,0.0972222,12
+1,11.8,7.3,0.075,12
+2,17.4,9.10833,0.0611111,11
+3,13.9,10.1583,0.00277778,12
+4,16.7,12.3583,0.00833333,12
+5,17.3,13.1833,0.0638889,11
+6,17.4,11.35,0.147222,12
+"""
+"""``colony/history_pop0.csv`` of ``run_colony_stage`` with the light follower, the paper's
+table and ``GASettings(populations=1, population_size=12, generations=6, test_starts=4,
+seed=5)``, written by the code before ``ColonySettings.fitness`` existed."""
+
+
+def test_a_short_stage_writes_the_history_of_before(tmp_path):
+    ga = GASettings(populations=1, population_size=12, generations=6, test_starts=4, seed=5)
+    run_colony_stage(tmp_path, navigation=parse_chromosome(LIGHT_FOLLOWER),
+                     table=load_table("paper"), ga=ga)  # fmt: skip
+    assert (tmp_path / "colony/history_pop0.csv").read_text() == HISTORY_BEFORE
+
+
+def test_one_robot_with_squares_is_the_lone_robot():
+    rng = np.random.default_rng(1718)
+    one = ColonySettings(robots=1)
+    genomes = rng.integers(0, 2, size=(300, 16, 30), dtype=np.uint8)
+    genomes[:100, 0, :9] = [0, 0, 1, 1, 0, 0, 0, 0, 0]
+    starts = colony_starts(rng, 6, NEAR_STATION, one)
+    kw = dict(table=PAPER_TABLE, mode="coverage", start_power=3.95)
+    col = evaluate_colony(genomes, starts, colony=one, **kw)
+    lone = evaluate(genomes, starts[:, 0], **kw)
+    np.testing.assert_array_equal(
+        colony_run_fitness(col, one, WORLD.coverage_steps), coverage_run_fitness(lone, None, WORLD)
+    )
+    assert lone.docks.sum() > 50
+
+
+# --------------------------------------------------------------------------- the setting
+
+
+def test_the_setting_is_validated():
+    allowed = "'squares', 'alive', 'per_step'"
+    with pytest.raises(SettingsError, match=f"fitness must be one of {allowed}, got 'coverage'"):
+        ColonySettings(fitness="coverage")
+    for bad in (-1.0, float("nan"), float("inf"), "8", True):
+        with pytest.raises(SettingsError, match="alive_weight must be a finite number ≥ 0"):
+            ColonySettings(fitness="alive", alive_weight=bad)
+    assert ColonySettings().fitness == "squares" and ColonySettings().alive_weight == 8.0
+
+
+def test_the_record_names_fitness_only_when_not_squares():
+    # the default: the record of a colony made before the fields existed
+    record = json.loads(settings_json(ColonySettings()))["ColonySettings"]
+    before = {k: v for k, v in dataclasses.asdict(ColonySettings()).items()
+              if k not in ("blocking", "fitness", "alive_weight")}  # fmt: skip
+    assert record == before
+    alive = json.loads(settings_json(ColonySettings(fitness="alive", alive_weight=4.0)))
+    assert alive["ColonySettings"]["fitness"] == "alive"
+    assert alive["ColonySettings"]["alive_weight"] == 4.0
+    per_step = json.loads(settings_json(ColonySettings(fitness="per_step")))["ColonySettings"]
+    assert per_step["fitness"] == "per_step" and "alive_weight" not in per_step
+
+
+TINY = GASettings(populations=1, population_size=10, generations=6, test_starts=4, seed=2)
+NAV = parse_chromosome(LIGHT_FOLLOWER)
+TABLE = load_table("paper")
+
+
+def test_a_folder_written_before_the_field_resumes(tmp_path):
+    """A settings.json without ``fitness`` (as written before the field existed) resumes with
+    the default; another fitness is refused on resume."""
+
+    def kill_at(info):
+        if info["generation"] == 3:
+            raise Interrupt
+
+    with pytest.raises(Interrupt):
+        run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, on_generation=kill_at)
+    doc = json.loads((tmp_path / "colony/settings.json").read_text())
+    assert not {"fitness", "alive_weight", "blocking"} & set(doc["ColonySettings"])
+    with pytest.raises(InputError, match='ColonySettings.fitness: absent there, "alive" here'):
+        run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, resume=True,
+                         colony=ColonySettings(fitness="alive"))  # fmt: skip
+    summary = run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, resume=True)
+    assert summary["settings"]["ColonySettings"] == doc["ColonySettings"]
+    for t in summary["final_test"]:
+        assert 0.0 <= t["live_at_end_per_run"] <= 3.0
+        assert t["run_fitness"] == pytest.approx(t["colony_squares"])
+
+
+def test_the_summary_reports_live_robots_and_the_run_fitness(tmp_path):
+    colony = ColonySettings(fitness="alive")
+    summary = run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, colony=colony)
+    assert summary["settings"]["ColonySettings"]["fitness"] == "alive"
+    for t in summary["final_test"]:
+        live = t["live_at_end_per_run"]
+        assert live == pytest.approx(3 * (t["ends"]["step limit"] + t["ends"]["docked"]))
+        assert t["run_fitness"] == pytest.approx(t["colony_squares"] + 8.0 * live / 3)
+
+
+def test_the_cli_option(tmp_path, capsys):
+    from servobot.cli.evolve import main
+
+    nav = write_chromosome(tmp_path / "nav.txt", NAV)
+    tiny = ["--populations", "1", "--population-size", "8", "--generations", "2",
+            "--no-progress", "--navigation", str(nav)]  # fmt: skip
+    out = tmp_path / "run"
+    assert main(["colony", *tiny, "--colony-fitness", "per_step", "--out", str(out)]) == 0
+    summary = json.loads((out / "colony/summary.json").read_text())
+    assert summary["settings"]["ColonySettings"]["fitness"] == "per_step"
+    assert "robots live at the end" in capsys.readouterr().out
+    assert main(["coverage", *tiny, "--colony-fitness", "alive", "--out", str(out)]) == 2
+    assert "--colony-fitness is an option of the colony stage" in capsys.readouterr().err
