@@ -201,6 +201,9 @@ def colony_run_fitness(ev: ColonyEvaluation, colony: ColonySettings, max_steps: 
         steps = ev.steps.sum(axis=2)
         scaled = squares * float(n * max_steps) / np.maximum(steps, 1)
         return np.where(steps == 0, 0.0, scaled)
+    if colony.fitness == "docks":
+        docks = np.minimum(ev.docks, colony.dock_cap).sum(axis=2)
+        return squares + float(colony.dock_weight) * docks / n
     return squares
 
 

@@ -454,6 +454,9 @@ def colony_fitness(result: ColonyResult, colony: ColonySettings, max_steps: int)
     if colony.fitness == "per_step":
         steps = result.steps
         return 0.0 if steps == 0 else squares * float(n * max_steps) / steps
+    if colony.fitness == "docks":
+        docks = sum(min(r.docks, colony.dock_cap) for r in result.robots)
+        return squares + float(colony.dock_weight) * docks / n
     return squares
 
 

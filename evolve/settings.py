@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,7 +27,7 @@ BLOCKING_RULES = ("cancel", "slide")
 """``ColonySettings.blocking`` values; a rule's index is its code in the numba kernel
 (``ColonySettings.blocking_code``)."""
 
-COLONY_FITNESSES = ("squares", "alive", "per_step")
+COLONY_FITNESSES = ("squares", "alive", "per_step", "docks")
 """``ColonySettings.fitness`` values: what one colony run scores in the colony stage."""
 
 
@@ -218,11 +219,24 @@ class ColonySettings:
       (backup cycles included, charging steps not), N the run's gait-step limit per robot
       (``coverage_steps``, 600): squares per robot step, scaled so that a colony whose robots
       all take their N steps scores exactly its squares; fewer steps for the same squares
-      score more. 0 when no robot took a step (no square is reached then)."""
+      score more. 0 when no robot took a step (no square is reached then).
+    - ``"docks"``: the colony's squares + ``dock_weight`` × Σ_r min(D_r, ``dock_cap``) / R,
+      D_r the times robot r docked in the run: each dock up to the cap pays ``dock_weight``
+      / R squares, so a colony whose every robot docks ``dock_cap`` times gains
+      ``dock_weight`` × ``dock_cap``."""
     alive_weight: float = 8.0
     """``fitness = "alive"``: what keeping every robot live to the end adds to a run's
     fitness, in squares (the units of the ``"squares"`` fitness, of 100): 8 = as much as 8
     more squares; each live robot adds ``alive_weight`` / R [chosen]."""
+    dock_weight: float = 4.0
+    """``fitness = "docks"``: what one dock of one robot is worth, in squares, times R (each
+    dock adds ``dock_weight`` / R to a run's fitness); 4 with ``dock_cap`` 2: a colony whose
+    every robot docks twice gains 8 squares, as ``alive_weight`` 8 pays for every robot live
+    [chosen; docs/colony.md "Learning to dock"]."""
+    dock_cap: int = 2
+    """``fitness = "docks"``: the docks per robot and run that count; more earn nothing, so a
+    colony is not paid for robots that shuttle to the station instead of covering. 2 = issue
+    17's goal of ≥ 2 docks per robot [chosen]."""
 
     def __post_init__(self) -> None:
         if self.fitness not in COLONY_FITNESSES:
@@ -232,6 +246,13 @@ class ColonySettings:
         number = isinstance(w, int | float) and not isinstance(w, bool)
         if not (number and math.isfinite(w) and w >= 0):
             raise SettingsError(f"alive_weight must be a finite number ≥ 0 (squares), got {w!r}")
+        w = self.dock_weight
+        number = isinstance(w, int | float) and not isinstance(w, bool)
+        if not (number and math.isfinite(w) and w >= 0):
+            raise SettingsError(f"dock_weight must be a finite number ≥ 0 (squares), got {w!r}")
+        cap = self.dock_cap
+        if not (isinstance(cap, numbers.Integral) and not isinstance(cap, bool) and cap >= 1):
+            raise SettingsError(f"dock_cap must be an integer ≥ 1 (docks per robot), got {cap!r}")
         if self.blocking not in BLOCKING_RULES:
             allowed = ", ".join(repr(b) for b in BLOCKING_RULES)
             raise SettingsError(f"blocking must be one of {allowed}, got {self.blocking!r}")
@@ -264,8 +285,9 @@ class ColonySettings:
 
     def to_dict(self) -> dict[str, Any]:
         """Every field, but ``blocking`` only when it is not ``"cancel"``, ``fitness`` only when
-        it is not ``"squares"`` and ``alive_weight`` only with ``fitness = "alive"`` (the one
-        fitness that reads it): the record of a colony made before these fields existed
+        it is not ``"squares"``, ``alive_weight`` only with ``fitness = "alive"`` and
+        ``dock_weight``, ``dock_cap`` only with ``fitness = "docks"`` (the fitnesses that read
+        them): the record of a colony made before these fields existed
         (``settings.json``, checked on resume) is unchanged, so such a run folder still
         resumes."""
         d = dataclasses.asdict(self)
@@ -275,6 +297,8 @@ class ColonySettings:
             del d["fitness"]
         if self.fitness != "alive":
             del d["alive_weight"]
+        if self.fitness != "docks":
+            del d["dock_weight"], d["dock_cap"]
         return d
 
 

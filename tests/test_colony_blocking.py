@@ -183,7 +183,8 @@ def test_blocking_is_validated_and_recorded_only_when_not_cancel():
     record = json.loads(settings_json(ColonySettings()))["ColonySettings"]
     assert "blocking" not in record
     assert record == {k: v for k, v in dataclasses.asdict(ColonySettings()).items()
-                      if k not in ("blocking", "fitness", "alive_weight")}  # fmt: skip
+                      if k not in ("blocking", "fitness", "alive_weight", "dock_weight",
+                                   "dock_cap")}  # fmt: skip
     assert json.loads(settings_json(SLIDE))["ColonySettings"]["blocking"] == "slide"
 
 

@@ -1,9 +1,10 @@
 """The colony's run fitness (``ColonySettings.fitness``, issue 17 "learning to share"):
-``"squares"`` (SPEC §7), ``"alive"`` (+ ``alive_weight`` × live robots / R) and ``"per_step"``
-(squares × R·N / gait steps). Hand-worked colonies in the interpreter and the kernel, the
+``"squares"`` (SPEC §7), ``"alive"`` (+ ``alive_weight`` × live robots / R), ``"per_step"``
+(squares × R·N / gait steps) and ``"docks"`` (+ ``dock_weight`` × Σ min(docks, ``dock_cap``)
+/ R). Hand-worked colonies in the interpreter and the kernel, the
 kernel against the interpreter on random colonies for every option, ``"squares"`` against the
 fitness before the setting existed, one robot, the setting's validation and record, resume
-of a run folder written before the field existed, and the CLI option."""
+of a run folder written before the field existed, and the CLI options."""
 
 from __future__ import annotations
 
@@ -52,6 +53,14 @@ TWO = np.array([[440.0, 225.0, 90.0], [300.0, 275.0, 270.0]])
 """Robot 0 faces east at x 440: x 450, 460 (square (9, 4), outer), 470, 480: kill zone (> 475)
 at its 4th step. Robot 1 faces west on the row y = 275 (square centres 25 + 50 i, reached
 within 19): x 290–260 square (5, 5), 250 none, 240–210 (4, 5), 190–160 (3, 5), ..."""
+VARIANTS = (
+    *((f, {}) for f in COLONY_FITNESSES),
+    ("alive", {"alive_weight": 2.5}),
+    ("docks", {"dock_weight": 2.5, "dock_cap": 1}),
+    ("docks", {"dock_weight": 7.0, "dock_cap": 3}),
+)
+"""(fitness, other ``ColonySettings`` fields): every option at its defaults, and other weights
+and caps."""
 
 
 def both(bits, starts, colony, *, max_steps, table=STEP, **kw):
@@ -86,7 +95,7 @@ def test_one_robot_killed_one_at_its_step_limit():
     ]  # fmt: skip
     assert (res.squares, res.inner_squares, res.live, res.steps) == (3, 2, 1, 10)
     # squares 3; alive 3 + 8 · 1/2 = 7; per step 3 · (2 · 6) / 10 = 3.6
-    assert_values(values, {"squares": 3.0, "alive": 7.0, "per_step": 3.0 * 12 / 10})
+    assert_values(values, {"squares": 3.0, "alive": 7.0, "per_step": 3.0 * 12 / 10, "docks": 3.0})
     w = ColonySettings(robots=2, fitness="alive", alive_weight=3.0)
     assert colony_fitness(res, w, 6) == 3.0 + 1.5
 
@@ -97,7 +106,7 @@ def test_the_colony_step_limit_leaves_every_robot_live():
     assert [r.end for r in res.robots] == [END_STEP_LIMIT] * 2
     assert (res.squares, res.live, res.steps) == (2, 2, 4)
     # alive 2 + 8 · 2/2 = 10; per step 2 · 12 / 4 = 6
-    assert_values(values, {"squares": 2.0, "alive": 10.0, "per_step": 6.0})
+    assert_values(values, {"squares": 2.0, "alive": 10.0, "per_step": 6.0, "docks": 2.0})
 
 
 def test_a_robot_charging_at_the_end_is_live():
@@ -111,8 +120,9 @@ def test_a_robot_charging_at_the_end_is_live():
         (1, 1, END_STEP_LIMIT), (5, 0, END_STEP_LIMIT)
     ]  # fmt: skip
     assert (res.squares, res.live, res.steps) == (1, 2, 6)
-    # alive 1 + 8 = 9; per step 1 · (2 · 20) / 6
-    assert_values(values, {"squares": 1.0, "alive": 9.0, "per_step": 40.0 / 6})
+    # alive 1 + 8 = 9; per step 1 · (2 · 20) / 6; docks 1 + 4 · 1/2 = 3
+    want = {"squares": 1.0, "alive": 9.0, "per_step": 40.0 / 6, "docks": 3.0}
+    assert_values(values, want)
     # Without the limit it charges, backs up 4 cycles (gait 15 stands still here), walks
     # east into the kill zone (x 480 after 2 more steps); robot 1 takes its 20 steps west:
     # squares (5, 5), (4, 5), (3, 5), (2, 5).
@@ -121,7 +131,8 @@ def test_a_robot_charging_at_the_end_is_live():
         (7, 1, END_KILL_ZONE), (20, 0, END_STEP_LIMIT)
     ]  # fmt: skip
     assert (res.squares, res.live, res.steps) == (4, 1, 27)
-    assert_values(values, {"squares": 4.0, "alive": 4.0 + 4.0, "per_step": 4.0 * 40 / 27})
+    want = {"squares": 4.0, "alive": 4.0 + 4.0, "per_step": 4.0 * 40 / 27, "docks": 4.0 + 2.0}
+    assert_values(values, want)
 
 
 def test_no_step_taken_scores_zero_per_step():
@@ -130,11 +141,45 @@ def test_no_step_taken_scores_zero_per_step():
     res, values = both(looping, TWO, ColonySettings(robots=2), max_steps=6)
     assert [r.end for r in res.robots] == [END_BRANCH_LIMIT] * 2
     assert (res.squares, res.live, res.steps) == (0, 0, 0)
-    assert_values(values, {"squares": 0.0, "alive": 0.0, "per_step": 0.0})
+    assert_values(values, {"squares": 0.0, "alive": 0.0, "per_step": 0.0, "docks": 0.0})
     # max_steps 0: no step allowed, every robot ends at its step limit, live
     res, values = both(FORWARD, TWO, ColonySettings(robots=2), max_steps=0)
     assert (res.squares, res.live, res.steps) == (0, 2, 0)
-    assert_values(values, {"squares": 0.0, "alive": 8.0, "per_step": 0.0})
+    assert_values(values, {"squares": 0.0, "alive": 8.0, "per_step": 0.0, "docks": 0.0})
+
+
+BACK = STEP.copy()
+BACK[15] = (-10.0, 0.0, 0.0)  # gait 15, the charging routine's backup: 10 units straight back
+LOW = WorldSettings(charged_power_v=3.9)
+"""Charging leaves a robot at 3.9 V, still low (below 4.0 V): after every charge DOCKER goes
+straight back to navigation."""
+
+
+def test_docks_count_each_robot_up_to_the_cap():
+    # Both face east in the docking band (|y − 250| ≤ 30), robot 0 at x 450 (y 235), robot 1
+    # at x 350 (y 270); DOCKER sends both to navigation (gait 0, 10 units east) at once.
+    # Robot 0 docks at x 460 after its 1st step (colony step 1), charges, backs up to x 420,
+    # walks back to 460 (colony step 19) while robot 1 charges there (docked at its 11th
+    # step, colony step 11): refused at 460 and 470, kill zone at 480 — 1 dock, 11 steps.
+    # Robot 1 docks again after its 19th and 27th steps and ends backing up at its 30-step
+    # limit — 3 docks. Squares: robot 0 (9, 4) at 460 and (8, 4) at 440–420; robot 1 (7, 5)
+    # at 360–390, (8, 5), (9, 5): 5 colony squares.
+    starts = np.array([[450.0, 235.0, 90.0], [350.0, 270.0, 90.0]])
+    res, values = both(DOCKER, starts, ColonySettings(robots=2), max_steps=30, table=BACK,
+                       settings=LOW, start_power=3.95)  # fmt: skip
+    assert [(r.steps, r.docks, r.end) for r in res.robots] == [
+        (11, 1, END_KILL_ZONE), (30, 3, END_STEP_LIMIT)
+    ]  # fmt: skip
+    assert (res.squares, res.live, res.station_waits) == (5, 1, 2)
+    # docks (cap 2): 5 + 4 · (min(1, 2) + min(3, 2)) / 2 = 5 + 4 · 3/2 = 11; alive 5 + 8 · 1/2
+    assert_values(values, {"squares": 5.0, "alive": 9.0, "per_step": 5.0 * 60 / 41, "docks": 11.0})
+    for cap, weight, want in ((3, 4.0, 5.0 + 4.0 * 4 / 2), (1, 3.0, 5.0 + 3.0 * 2 / 2),
+                              (2, 0.0, 5.0), (5, 0.5, 5.0 + 0.5 * 4 / 2)):  # fmt: skip
+        c = ColonySettings(robots=2, fitness="docks", dock_weight=weight, dock_cap=cap)
+        ev = evaluate_colony(DOCKER[None], starts[None], table=BACK, mode="coverage",
+                             max_steps=30, colony=c, settings=LOW, start_power=3.95)  # fmt: skip
+        assert colony_fitness(res, c, 30) == want
+        assert colony_run_fitness(ev, c, 30)[0, 0] == want
 
 
 # --------------------------------------------------------------------------- kernel = interpreter
@@ -143,7 +188,7 @@ def test_no_step_taken_scores_zero_per_step():
 def test_kernel_fitness_equals_the_interpreter_on_random_colonies():
     """3,000 colony runs (half near the station, switching to navigation at once, so that
     robots dock, charge and wait; a third under a colony-step limit that cuts charges):
-    every fitness of every run equal bit for bit."""
+    every fitness (``VARIANTS``) of every run equal bit for bit, and the docks per robot."""
     rng = np.random.default_rng(1717)
     genomes = rng.integers(0, 2, size=(500, 16, 30), dtype=np.uint8)
     genomes[:250, 0, :9] = [0, 0, 1, 1, 0, 0, 0, 0, 0]  # gene 0 ×∞, first: if low-power goto 8
@@ -158,27 +203,29 @@ def test_kernel_fitness_equals_the_interpreter_on_random_colonies():
     for colony, starts in cases:
         kw = dict(table=PAPER_TABLE, mode="coverage", start_power=3.95, colony=colony)
         ev = evaluate_colony(genomes, starts, **kw)
-        fits = {
-            f: colony_run_fitness(ev, dataclasses.replace(colony, fitness=f), WORLD.coverage_steps)
-            for f in COLONY_FITNESSES
-        }
-        np.testing.assert_array_equal(fits["squares"], ev.squares.astype(np.float64))
+        variants = [dataclasses.replace(colony, fitness=f, **kw) for f, kw in VARIANTS]
+        fits = [colony_run_fitness(ev, c, WORLD.coverage_steps) for c in variants]
+        np.testing.assert_array_equal(fits[0], ev.squares.astype(np.float64))
         for i in range(genomes.shape[0]):
             for s in range(starts.shape[0]):
                 res = run_colony(genomes[i], TableColony(PAPER_TABLE, starts[s], WORLD, colony),
                                  colony=colony, start_power=3.95)  # fmt: skip
                 assert res.squares == ev.squares[i, s]
                 assert [r.end for r in res.robots] == ev.end[i, s].tolist()
-                for f in COLONY_FITNESSES:
-                    c = dataclasses.replace(colony, fitness=f)
+                assert [r.docks for r in res.robots] == ev.docks[i, s].tolist()
+                for v, c in enumerate(variants):
                     got = colony_fitness(res, c, WORLD.coverage_steps)
-                    assert got == fits[f][i, s], (f, i, s, got, fits[f][i, s])
+                    assert got == fits[v][i, s], (VARIANTS[v], i, s, got, fits[v][i, s])
                 live_kinds.add(res.live)
-                per_step_max = max(per_step_max, fits["per_step"][i, s])
+                per_step_max = max(per_step_max, fits[2][i, s])
         if colony.colony_step_limit is not None:
             docked_live = int(((ev.docks > 0) & ev.live).sum())
+        else:
+            dock_counts = np.bincount(ev.docks.ravel())
     assert live_kinds == {0, 1, 2, 3}
     assert per_step_max > 100 and docked_live > 10
+    # the caps bite: robots docking once (410 of 3,000), twice (12), three times (3)
+    assert dock_counts[1] > 100 and dock_counts[2] > 5 and dock_counts[3:].sum() > 0, dock_counts
 
 
 def test_squares_is_the_fitness_before_the_setting_bit_for_bit():
@@ -238,26 +285,41 @@ def test_one_robot_with_squares_is_the_lone_robot():
 
 
 def test_the_setting_is_validated():
-    allowed = "'squares', 'alive', 'per_step'"
+    allowed = "'squares', 'alive', 'per_step', 'docks'"
     with pytest.raises(SettingsError, match=f"fitness must be one of {allowed}, got 'coverage'"):
         ColonySettings(fitness="coverage")
     for bad in (-1.0, float("nan"), float("inf"), "8", True):
         with pytest.raises(SettingsError, match="alive_weight must be a finite number ≥ 0"):
             ColonySettings(fitness="alive", alive_weight=bad)
     assert ColonySettings().fitness == "squares" and ColonySettings().alive_weight == 8.0
+    for bad in (-0.5, float("nan"), float("-inf"), None, False):
+        with pytest.raises(SettingsError, match="dock_weight must be a finite number ≥ 0"):
+            ColonySettings(fitness="docks", dock_weight=bad)
+    for bad in (0, -2, 2.0, True, "2"):
+        with pytest.raises(SettingsError, match="dock_cap must be an integer ≥ 1"):
+            ColonySettings(fitness="docks", dock_cap=bad)
+    c = ColonySettings(fitness="docks", dock_weight=0, dock_cap=np.int64(5))
+    assert (c.dock_weight, c.dock_cap) == (0, 5)
+    assert (ColonySettings().dock_weight, ColonySettings().dock_cap) == (4.0, 2)
 
 
 def test_the_record_names_fitness_only_when_not_squares():
     # the default: the record of a colony made before the fields existed
     record = json.loads(settings_json(ColonySettings()))["ColonySettings"]
-    before = {k: v for k, v in dataclasses.asdict(ColonySettings()).items()
-              if k not in ("blocking", "fitness", "alive_weight")}  # fmt: skip
+    new_fields = ("blocking", "fitness", "alive_weight", "dock_weight", "dock_cap")
+    before = {k: v for k, v in dataclasses.asdict(ColonySettings()).items() if k not in new_fields}
     assert record == before
     alive = json.loads(settings_json(ColonySettings(fitness="alive", alive_weight=4.0)))
     assert alive["ColonySettings"]["fitness"] == "alive"
     assert alive["ColonySettings"]["alive_weight"] == 4.0
     per_step = json.loads(settings_json(ColonySettings(fitness="per_step")))["ColonySettings"]
     assert per_step["fitness"] == "per_step" and "alive_weight" not in per_step
+    assert "dock_weight" not in per_step and "dock_cap" not in per_step
+    assert not {"dock_weight", "dock_cap"} & set(alive["ColonySettings"])
+    docks = json.loads(settings_json(ColonySettings(fitness="docks", dock_weight=6.0)))
+    assert docks["ColonySettings"]["fitness"] == "docks"
+    assert (docks["ColonySettings"]["dock_weight"], docks["ColonySettings"]["dock_cap"]) == (6.0, 2)
+    assert "alive_weight" not in docks["ColonySettings"]
 
 
 TINY = GASettings(populations=1, population_size=10, generations=6, test_starts=4, seed=2)
@@ -310,3 +372,23 @@ def test_the_cli_option(tmp_path, capsys):
     assert "robots live at the end" in capsys.readouterr().out
     assert main(["coverage", *tiny, "--colony-fitness", "alive", "--out", str(out)]) == 2
     assert "--colony-fitness is an option of the colony stage" in capsys.readouterr().err
+    docks = tmp_path / "docks"
+    args = ["--colony-fitness", "docks", "--dock-weight", "6", "--dock-cap", "3"]
+    assert main(["colony", *tiny, *args, "--out", str(docks)]) == 0
+    record = json.loads((docks / "colony/summary.json").read_text())["settings"]["ColonySettings"]
+    assert (record["fitness"], record["dock_weight"], record["dock_cap"]) == ("docks", 6.0, 3)
+    refused = {
+        ("--colony-fitness", "alive", "--dock-weight", "4"): "--dock-weight is an option of "
+        "--colony-fitness docks",
+        ("--dock-cap", "2"): "--dock-cap is an option of --colony-fitness docks",
+        ("--alive-weight", "8"): "--alive-weight is an option of --colony-fitness alive",
+        ("--colony-fitness", "docks", "--dock-weight", "nan"): "--dock-weight must be a finite "
+        "number ≥ 0",
+        ("--colony-fitness", "alive", "--alive-weight", "-1"): "--alive-weight must be a finite "
+        "number ≥ 0",
+        ("--colony-fitness", "docks", "--dock-cap", "0"): "--dock-cap must be an integer ≥ 1",
+    }
+    for extra, message in refused.items():
+        assert main(["colony", *tiny, *extra, "--out", str(tmp_path / "no")]) == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "no").exists()

@@ -9,12 +9,14 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
     servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide
-                                --colony-fitness squares|alive|per_step]
+                                --colony-fitness squares|alive|per_step|docks
+                                --alive-weight 8 --dock-weight 4 --dock-cap 2]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
 R, ``--blocking`` its table-world blocking rule, ``--colony-fitness`` what a colony run
-scores). ``--navigation`` defaults to
+scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`` (with
+``docks``) its terms). ``--navigation`` defaults to
 ``DIR/navigation/best.txt``; a 16-gene file (e.g. a ``coverage/best_pop{k}.txt``) is
 accepted too and its genes 8–15, the navigation section, are used. Bad input (missing or
 malformed files, a bad gait table, impossible sizes, a run folder holding another run or in
@@ -115,7 +117,29 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="colony only: what a colony run scores: its squares (default), its squares + "
         "8 × the fraction of robots live at the end ('alive'), or its squares per robot step "
-        "scaled by R × 600 ('per_step'); ColonySettings.fitness, docs/colony.md",
+        "scaled by R × 600 ('per_step'), or its squares + 4 × the docks per robot, each "
+        "robot's capped at 2 ('docks'); ColonySettings.fitness, docs/colony.md",
+    )
+    p.add_argument(
+        "--alive-weight",
+        type=float,
+        default=None,
+        help="colony, --colony-fitness alive: squares that every robot live at the end adds "
+        "(8; ColonySettings.alive_weight)",
+    )
+    p.add_argument(
+        "--dock-weight",
+        type=float,
+        default=None,
+        help="colony, --colony-fitness docks: squares per dock per robot (4; "
+        "ColonySettings.dock_weight)",
+    )
+    p.add_argument(
+        "--dock-cap",
+        type=int,
+        default=None,
+        help="colony, --colony-fitness docks: docks per robot and run that count (2; "
+        "ColonySettings.dock_cap)",
     )
     p.add_argument(
         "--power",
@@ -249,16 +273,35 @@ def _print_colony(summary: dict[str, Any], out: Path) -> None:
     print(f"wrote {out / 'colony'} ({summary['wall_s']:.1f} s)")
 
 
-def _colony(robots: int | None, blocking: str | None, fitness: str | None) -> Any:
+def _colony(args: argparse.Namespace) -> Any:
     from evolve.settings import ColonySettings
 
-    kw: dict[str, Any] = {} if blocking is None else {"blocking": blocking}
-    if fitness is not None:
-        kw["fitness"] = fitness
-    if robots is None:
+    kw: dict[str, Any] = {} if args.blocking is None else {"blocking": args.blocking}
+    if args.colony_fitness is not None:
+        kw["fitness"] = args.colony_fitness
+    for flag, field, fitness in FITNESS_TERMS:
+        value = getattr(args, field)
+        if value is None:
+            continue
+        if args.colony_fitness != fitness:
+            raise CliError(f"{flag} is an option of --colony-fitness {fitness}")
+        if field == "dock_cap":
+            check_int(value, flag, lo=1)
+        elif not (np.isfinite(value) and value >= 0):
+            raise CliError(f"{flag} must be a finite number ≥ 0 (squares), got {value}")
+        kw[field] = value
+    if args.robots is None:
         return ColonySettings(**kw)
-    check_int(robots, "--robots", lo=1)
-    return ColonySettings(robots=robots, **kw)
+    check_int(args.robots, "--robots", lo=1)
+    return ColonySettings(robots=args.robots, **kw)
+
+
+FITNESS_TERMS = (
+    ("--alive-weight", "alive_weight", "alive"),
+    ("--dock-weight", "dock_weight", "docks"),
+    ("--dock-cap", "dock_cap", "docks"),
+)
+"""(option, ``ColonySettings`` field, the ``--colony-fitness`` that reads it)."""
 
 
 def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
@@ -271,7 +314,7 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
         raise CliError("--blocking is an option of the colony stage")
     if args.colony_fitness is not None and args.stage != "colony":
         raise CliError("--colony-fitness is an option of the colony stage")
-    colony = _colony(args.robots, args.blocking, args.colony_fitness)
+    colony = _colony(args)
     ga = ga_settings(args)
     table = load_table(args.table)
     world = with_power_model(WorldSettings(), args.power, table)
