@@ -363,6 +363,14 @@ class NavigationSettings:
     SPEC §6 region over this fraction of the stage's generations (256 of 1024), then stays
     whole; 0 = the whole region from generation 0 (SPEC §6 as first written). The test and
     selection starts always cover the whole region [chosen]."""
+    start_power_v: float | None = None
+    """Store (V) at the start of every run of the stage (training, selection, test); None:
+    ``WorldSettings.start_power_v``, 4.0 V as SPEC §6 writes [chosen]. The coverage section hands
+    off only once the low-power sensor is on (store < ``low_power_v``), so every run of the
+    section in use starts with it on, while a SPEC §6 run starts at exactly 4.0 V with it off
+    until the first paid cycle: a section whose first low-power test branches on that bit can
+    dock from 4.0 V and fail from every hand-off. A value below ``low_power_v`` (3.99) trains
+    and chooses the section as it will run (docs/envelope.md)."""
 
     def __post_init__(self) -> None:
         if self.candidates not in ("saved", "final"):
@@ -380,6 +388,10 @@ class NavigationSettings:
         ramp = self.start_ramp_fraction
         if not (isinstance(ramp, int | float) and 0.0 <= ramp <= 1.0):
             raise SettingsError(f"start_ramp_fraction must be in [0, 1], got {ramp!r}")
+        v = self.start_power_v
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
+                              or not math.isfinite(v) or v <= 0.0):  # fmt: skip
+            raise SettingsError(f"start_power_v must be a voltage > 0 or None, got {v!r}")
 
     def ramp_generations(self, generations: int) -> int:
         """Generations over which the training start region grows in a stage of
@@ -387,7 +399,18 @@ class NavigationSettings:
         return round(self.start_ramp_fraction * generations)
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The fields; ``start_power_v`` only when set (folders made before it resume)."""
+        doc = dataclasses.asdict(self)
+        if self.start_power_v is None:
+            del doc["start_power_v"]
+        return doc
+
+    def world(self, world: WorldSettings) -> WorldSettings:
+        """``world`` as the stage's runs see it: its start power replaced by ``start_power_v``
+        when set."""
+        if self.start_power_v is None:
+            return world
+        return dataclasses.replace(world, start_power_v=float(self.start_power_v))
 
 
 NAVIGATION_STARTS_PER_GENERATION = 40

@@ -387,6 +387,7 @@ def run_navigation(
     """
     run = StageRun(**options)
     ga = navigation_ga_settings() if ga is None else ga
+    world = navigation.world(world)
     stage = navigation_stage(world, navigation, ga.generations, run.envelope)
     folder = Path(out) / "navigation"
     with _stage_folder(stage, folder, table, ga, world, run.resume, run.force) as doc:

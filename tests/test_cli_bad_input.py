@@ -164,6 +164,8 @@ CASES = {
         (["coverage", "--navigation", "{chrom7}"], "expected 8 or 16 genes, found 7"),
         (["colony", "--robots", "0", "--navigation", "{chrom8}"], "--robots must be an integer"),
         (["navigation", "--robots", "3"], "--robots is an option of the colony stage"),
+        (["coverage", "--nav-start-power", "3.99"], "--nav-start-power is an option of the nav"),
+        (["navigation", "--nav-start-power", "0"], "start_power_v must be a voltage > 0"),
         (["colony", "--navigation", "{binary}"], "binary.bin: holds binary data"),
     ],
     "anytime": [

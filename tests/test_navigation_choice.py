@@ -64,6 +64,8 @@ def test_navigation_settings_refuse_what_cannot_run():
         {"first_start_radius": float("nan")},
         {"start_ramp_fraction": -0.1},
         {"start_ramp_fraction": 1.5},
+        {"start_power_v": 0.0},
+        {"start_power_v": float("nan")},
     ):
         with pytest.raises(SettingsError, match=next(iter(bad))):
             NavigationSettings(**bad)
@@ -116,6 +118,28 @@ def test_final_candidates_only_compares_each_populations_final_best(tiny_navigat
     assert [(c["population"], c["generation"]) for c in summary["candidates"]] == [(0, 8), (1, 8)]
     settings = json.loads((tmp_path / "navigation" / "settings.json").read_text())
     assert settings["NavigationSettings"]["candidates"] == "final"
+
+
+def test_a_stage_at_the_hand_off_power_runs_and_records_it(tiny_navigation, tmp_path):
+    """``start_power_v`` below the low-power threshold: every run of the stage starts with the
+    low-power sensor on, as a hand-off does; the stage's world and record carry it, and a
+    stage without it records what it recorded before the field existed."""
+    _, ga, nav, summary = tiny_navigation
+    low = dataclasses.replace(nav, start_power_v=3.99)
+    assert low.world(WORLD).start_power_v == 3.99 and nav.world(WORLD) is WORLD
+    got = stages.run_navigation(tmp_path, table=TABLE, ga=ga, navigation=low)
+    doc = json.loads((tmp_path / "navigation" / "settings.json").read_text())
+    assert doc["WorldSettings"]["start_power_v"] == 3.99
+    assert doc["NavigationSettings"]["start_power_v"] == 3.99
+    assert "start_power_v" not in summary["settings"]["NavigationSettings"]
+    # the candidates were compared from 3.99 V: the chosen one's selection rate, again
+    from evolve.evaluation import evaluate
+    from evolve.interpreter import END_NAMES
+
+    best = read_chromosome(tmp_path / "navigation" / "best.txt")[None]
+    sel = navigation_starts(stages.stage_rng(ga.seed, "navigation", 1), 200, WORLD)
+    ends = evaluate(best, sel, table=TABLE, mode="navigation", start_power=3.99).end
+    assert np.mean(ends == END_NAMES.index("docked")) == got["selection"]["dock_rate"]
 
 
 # --------------------------------------------------------------------------- curriculum

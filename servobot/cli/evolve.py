@@ -142,6 +142,15 @@ def build_parser() -> argparse.ArgumentParser:
         "ColonySettings.dock_cap)",
     )
     p.add_argument(
+        "--nav-start-power",
+        type=float,
+        default=None,
+        metavar="V",
+        help="navigation only: store (V) at the start of every run of the stage (default 4.0, "
+        "SPEC §6); below 4.0 (e.g. 3.99) the low-power sensor is on from the start, as at every "
+        "hand-off from coverage (NavigationSettings.start_power_v, docs/envelope.md)",
+    )
+    p.add_argument(
         "--power",
         choices=("paper", "table"),
         default="paper",
@@ -312,6 +321,8 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
         raise CliError("--robots is an option of the colony stage")
     if args.blocking is not None and args.stage != "colony":
         raise CliError("--blocking is an option of the colony stage")
+    if args.nav_start_power is not None and args.stage != "navigation":
+        raise CliError("--nav-start-power is an option of the navigation stage")
     if args.colony_fitness is not None and args.stage != "colony":
         raise CliError("--colony-fitness is an option of the colony stage")
     colony = _colony(args)
@@ -325,7 +336,8 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     if args.stage == "navigation":
         if args.navigation is not None:
             raise CliError("--navigation is an option of the coverage and colony stages")
-        _print_navigation(stages.run_navigation(args.out, **kw), args.out)
+        nav = stages.NavigationSettings(start_power_v=args.nav_start_power)
+        _print_navigation(stages.run_navigation(args.out, navigation=nav, **kw), args.out)
         return 0
     navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt",
                                  given=args.navigation is not None)  # fmt: skip
