@@ -6,6 +6,7 @@ of their lit cones and the dark area. Figure 9: test fitness (% of the 64 inner 
 population's best individual per saved generation, 5 thin lines and their bold mean.
 ``figure_anytime``: anytime learning's best by generation in physics and in the table world.
 ``docking_map``: where a navigation section docks from, each start coloured by its end.
+``figure_colony_docks``: a colony's cumulative docks per robot and live robots by colony step.
 Figure 10: a chromosome's track from a start pose (the table interpreter) over the arena; for
 a colony (SPEC §7), every robot's track in its own colour from one colony start.
 Arena units (cm), x east, y north; headings 0 = north, clockwise.
@@ -244,6 +245,52 @@ def figure_anytime(
     return _save(fig, Path(path))
 
 
+def figure_colony_docks(
+    path: str | Path,
+    curves: list[dict[str, Any]],
+    title: str,
+    *,
+    dock_goal: float = 2.0,
+    live_goal: float | None = None,
+) -> Path:
+    """The colony's docks over time (``evolve.colony_timeline``): two panels over the colony
+    steps, one line per curve (``label``; ``docks_per_robot``, ``live``, optionally
+    ``charging`` and ``robots``, each a mean over colony starts per colony step). Top: the
+    cumulative docks per robot, dashed at ``dock_goal`` (issue 17: 2). Bottom: the robots
+    live (solid) and charging (dotted) of R, dashed at ``live_goal`` (default ⅔ R: 2 of 3)."""
+    robots = max(int(c.get("robots", 1)) for c in curves) if curves else 1
+    goal = 2.0 * robots / 3.0 if live_goal is None else live_goal
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7.0, 5.6),
+                                      gridspec_kw={"height_ratios": (3, 2)})  # fmt: skip
+    for k, c in enumerate(curves):
+        colour = f"C{k % 10}"
+        steps = np.arange(len(c["docks_per_robot"]))
+        docks = np.asarray(c["docks_per_robot"], dtype=float)
+        top.plot(steps, docks, lw=1.3, color=colour, label=f"{c['label']}: {docks[-1]:.2f}")
+        live = np.asarray(c["live"], dtype=float)
+        bottom.plot(steps, live, lw=1.3, color=colour, label=f"{c['label']}: {live[-1]:.2f}")
+        if "charging" in c:
+            bottom.plot(steps, np.asarray(c["charging"], dtype=float), lw=0.7, ls=":",
+                        color=colour, alpha=0.7)  # fmt: skip
+    top.axhline(dock_goal, color="k", ls="--", lw=0.9, label=f"goal: {dock_goal:g} docks per robot")
+    top.set_ylabel("cumulative docks per robot")
+    top.set_ylim(0, max(dock_goal * 1.15, *(max(c["docks_per_robot"]) * 1.1 for c in curves)))
+    top.set_title(title, fontsize=8)
+    top.legend(fontsize=7, loc="upper left", title="at the end", title_fontsize=7)
+    bottom.axhline(goal, color="k", ls="--", lw=0.9, label=f"goal: {goal:g} of {robots} live")
+    bottom.plot([], [], color="0.4", lw=0.7, ls=":", label="dotted: robots charging")
+    bottom.set_ylabel(f"robots live (of {robots})")
+    bottom.set_xlabel("colony step")
+    bottom.set_ylim(0, robots + 0.15)
+    bottom.legend(fontsize=6.5, loc="upper right", ncol=2, title="live at the end",
+                  title_fontsize=7)  # fmt: skip
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+    bottom.set_xlim(left=0)
+    fig.tight_layout()
+    return _save(fig, Path(path))
+
+
 def run_track(
     chromosome: np.ndarray,
     *,
@@ -403,6 +450,7 @@ __all__ = [
     "figure9",
     "figure10",
     "figure_anytime",
+    "figure_colony_docks",
     "lit_mask",
     "run_colony_track",
     "run_track",

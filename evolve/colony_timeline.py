@@ -1,0 +1,363 @@
+"""The colony's docks over time (issue 17): how often its robots dock, and how many stay live,
+colony step by colony step.
+
+A colony chromosome runs with the reference interpreter (``evolve.interpreter.run_colony``,
+its ``on_event`` stream) in the table world from N colony starts (``evolve.starts.
+colony_starts``), and for every colony step t = 0 … T the mean over the starts of
+
+- the cumulative docks per robot (docks of all robots up to t, / R),
+- the robots live (of R): not yet ended by the kill zone, an empty store or the branch limit
+  (``LIVE_ENDS``: a robot that reached its own step limit stays live, as in
+  ``final_test``'s ``live_at_end_per_run``),
+- the robots charging: those whose colony step t was a charging step (a ``"charge"`` event).
+
+A run that ends before T holds its last docks and live robots (nobody charges after it).
+
+**A dock in the event stream.** The interpreter counts a dock when, after a gait step in the
+navigation section, the docking rule holds and no other robot charges. That step is a
+``"gait"`` event of mode ``"navigation"`` whose pose meets the rule (``geometry.docked``)
+and which did not end the robot (kill zone, store empty: checked before docking); the dock is
+refused when that robot's next event is a ``"wait"`` (station busy). The charge itself shows
+one colony step later (``"charge"`` events), or never when the dock was the robot's last
+allowed gait step or the colony-step limit came first, so the dock is dated by its gait
+step. Every run checks the count against ``RunResult.docks`` of each robot.
+
+Run: ``python -m evolve.colony_timeline RUN_DIR [--starts 20] [--seed 0] [--table paper|PATH]
+[--out FILE.png]``: every finalist ``RUN_DIR/colony/best_pop{k}.txt``, under the run's own
+settings (``colony/settings.json``: ``WorldSettings``, ``ColonySettings`` and the gait table
+it recorded, unless ``--table`` names another), into ``RUN_DIR/colony/docks_over_time.png``
+(default) and the curves beside it (``.json``); prints each finalist's final means.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evolve import geometry as geo
+from evolve.codec import read_chromosome
+from evolve.interpreter import LIVE_ENDS, ColonyEvent, ColonyResult, run_colony
+from evolve.settings import ColonySettings, WorldSettings
+from evolve.starts import colony_starts
+from evolve.table import GaitTable, load_table
+from evolve.world import TableColony
+from infra.errors import InputError
+from infra.io import atomic_write_json, read_json
+
+DOCK_GOAL = 2.0
+"""Issue 17's goal: every robot docks at least this many times in a run."""
+LIVE_GOAL_SHARE = 2.0 / 3.0
+"""Issue 17's goal: at least this share of the colony's robots live at the end (2 of 3)."""
+FIGURE_NAME = "docks_over_time.png"
+"""The figure's default name in ``RUN_DIR/colony``; the curves go beside it as ``.json``."""
+
+
+class TimelineError(InputError, ValueError):
+    """A run folder the timeline cannot use; the message names the folder and the problem."""
+
+
+@dataclass(frozen=True)
+class RunTimeline:
+    """One colony run, colony step by colony step (index t = 0 … colony_steps)."""
+
+    docks: np.ndarray
+    """(T + 1,) int: docks of all robots up to and including colony step t."""
+    live: np.ndarray
+    """(T + 1,) int: robots live after colony step t (``LIVE_ENDS``)."""
+    charging: np.ndarray
+    """(T + 1,) int: robots that spent colony step t charging."""
+    dock_steps: tuple[tuple[int, ...], ...]
+    """Per robot: the colony steps at which it docked."""
+    result: ColonyResult
+    """The interpreter's result of the run."""
+
+
+class _DockWatcher:
+    """Follows a colony's events: each robot's docks (dated by their gait step), charging
+    steps and end step."""
+
+    def __init__(self, robots: int, world: WorldSettings) -> None:
+        self.p = geo.packed_tuple(world)
+        self.empty = world.empty_power_v
+        self.pending: list[int | None] = [None] * robots
+        self.docks: list[list[int]] = [[] for _ in range(robots)]
+        self.charging: list[int] = []
+        self.ended = [0] * robots
+
+    def __call__(self, ce: ColonyEvent) -> None:
+        i, t, e = ce.robot, ce.colony_step, ce.event
+        if self.pending[i] is not None:
+            if e.kind != "wait":  # the docking rule held and the station was free
+                self.docks[i].append(self.pending[i])
+            self.pending[i] = None
+        if e.kind == "gait" and e.mode == "navigation":
+            x, y, h = e.pose
+            if (
+                not geo.killed(x, y, self.p)
+                and e.power >= self.empty
+                and geo.docked(x, y, h, self.p)
+            ):
+                self.pending[i] = t
+        elif e.kind == "charge":
+            self.charging.append(t)
+        elif e.kind == "end":
+            self.ended[i] = t
+
+
+def run_timeline(
+    chromosome: np.ndarray,
+    start: np.ndarray,
+    *,
+    table: GaitTable | np.ndarray,
+    world: WorldSettings,
+    colony: ColonySettings,
+    start_power: float | None = None,
+    max_steps: int | None = None,
+) -> RunTimeline:
+    """One colony run of a 16-gene ``chromosome`` from ``start`` (R, 3) with the reference
+    interpreter in the table world (coverage mode), colony step by colony step. Raises
+    ``AssertionError`` if the docks counted from the events differ from the interpreter's."""
+    values = getattr(table, "values", table)
+    start = np.asarray(start, dtype=np.float64)
+    watch = _DockWatcher(start.shape[0], world)
+    res = run_colony(
+        np.asarray(chromosome, np.uint8), TableColony(values, start, world, colony),
+        settings=world, colony=colony, start_power=start_power, max_steps=max_steps,
+        on_event=watch,
+    )  # fmt: skip
+    counted = [len(d) for d in watch.docks]
+    want = [r.docks for r in res.robots]
+    assert counted == want, f"docks from the events {counted} != the interpreter's {want}"
+    steps = res.colony_steps + 1
+    t = np.arange(steps)
+    docks = np.zeros(steps, dtype=np.int64)
+    for d in watch.docks:
+        docks += np.searchsorted(np.sort(d), t, side="right")
+    live = np.full(steps, len(res.robots), dtype=np.int64)
+    for r, end in zip(res.robots, watch.ended, strict=True):
+        if r.end not in LIVE_ENDS:
+            live[end:] -= 1
+    charging = np.bincount(np.asarray(watch.charging, dtype=np.int64), minlength=steps)[:steps]
+    return RunTimeline(docks, live, charging, tuple(tuple(d) for d in watch.docks), res)
+
+
+def _hold(a: np.ndarray, n: int, fill: float | None = None) -> np.ndarray:
+    """``a`` extended to length ``n`` with its last value (or ``fill``)."""
+    pad = a[-1] if fill is None else fill
+    return np.concatenate([a, np.full(n - len(a), pad, dtype=a.dtype)])
+
+
+def colony_timeline(
+    chromosome: np.ndarray,
+    starts: np.ndarray,
+    *,
+    table: GaitTable | np.ndarray,
+    world: WorldSettings,
+    colony: ColonySettings,
+    start_power: float | None = None,
+    max_steps: int | None = None,
+) -> dict[str, Any]:
+    """Means over the colony ``starts`` (S, R, 3) of a chromosome's runs, per colony step
+    t = 0 … T (T the longest run): ``docks_per_robot`` (cumulative docks / R), ``live`` and
+    ``charging`` (robots, of R), as lists; and ``final_docks_per_robot`` (the interpreter's
+    ``RunResult.docks``, mean over robots and starts: the last ``docks_per_robot``),
+    ``live_at_end`` (``ColonyResult.live``, mean), ``colony_steps`` (mean run length),
+    ``robots``, ``starts``."""
+    starts = np.asarray(starts, dtype=np.float64)
+    runs = [run_timeline(chromosome, s, table=table, world=world, colony=colony,
+                         start_power=start_power, max_steps=max_steps) for s in starts]  # fmt: skip
+    n = max(len(r.docks) for r in runs)
+    r_count = starts.shape[1]
+    docks = np.mean([_hold(r.docks, n) for r in runs], axis=0) / r_count
+    live = np.mean([_hold(r.live, n) for r in runs], axis=0)
+    charging = np.mean([_hold(r.charging, n, 0) for r in runs], axis=0)
+    return {
+        "robots": r_count,
+        "starts": len(runs),
+        "docks_per_robot": docks.tolist(),
+        "live": live.tolist(),
+        "charging": charging.tolist(),
+        "final_docks_per_robot": float(np.mean([[x.docks for x in r.result.robots] for r in runs])),
+        "live_at_end": float(np.mean([r.result.live for r in runs])),
+        "colony_steps": float(np.mean([r.result.colony_steps for r in runs])),
+    }
+
+
+# --------------------------------------------------------------------------- a run folder
+
+
+def finalists(run_dir: str | Path) -> list[Path]:
+    """The colony finalists ``RUN_DIR/colony/best_pop{k}.txt`` in population order;
+    ``TimelineError`` naming the folder if there are none."""
+    folder = Path(run_dir, "colony")
+    paths = [p for p in folder.glob("best_pop*.txt") if p.stem[8:].isdigit()]
+    if not paths:
+        raise TimelineError(
+            f"{run_dir}: no colony finalists (colony/best_pop<k>.txt): not a finished colony "
+            "stage's run folder"
+        )
+    return sorted(paths, key=lambda p: int(p.stem[8:]))
+
+
+def _tuples(v: Any) -> Any:
+    """JSON lists back into the tuples of a settings dataclass."""
+    return tuple(_tuples(x) for x in v) if isinstance(v, list) else v
+
+
+def _settings(cls: type, doc: Any, name: str) -> Any:
+    if not isinstance(doc, dict):
+        raise TimelineError(f"{name}: no {cls.__name__} object")
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(doc) - known)
+    if unknown:
+        raise TimelineError(f"{name}: {cls.__name__} has unknown fields {unknown}")
+    try:
+        return cls(**{k: _tuples(v) for k, v in doc.items()})
+    except (TypeError, ValueError) as exc:
+        raise TimelineError(f"{name}: {cls.__name__}: {exc}") from exc
+
+
+def run_settings(
+    run_dir: str | Path,
+) -> tuple[WorldSettings, ColonySettings, np.ndarray | None, str | None]:
+    """The colony stage's ``WorldSettings``, ``ColonySettings`` and gait table (values and
+    source, or None where not recorded) from ``RUN_DIR/colony/settings.json``; fields the
+    record leaves out take their defaults (``ColonySettings.to_dict`` omits defaults)."""
+    path = Path(run_dir, "colony", "settings.json")
+    if not path.is_file():
+        raise TimelineError(
+            f"{run_dir}: no colony/settings.json: the colony's settings are unknown"
+        )
+    doc = read_json(path, what="colony settings", error=TimelineError)
+    if not isinstance(doc, dict):
+        raise TimelineError(f"{path}: not a JSON object")
+    world = _settings(WorldSettings, doc.get("WorldSettings"), str(path))
+    colony = _settings(ColonySettings, doc.get("ColonySettings"), str(path))
+    table = doc.get("table") if isinstance(doc.get("table"), dict) else {}
+    values = table.get("values")
+    arr = None if values is None else np.asarray(values, dtype=np.float64)
+    return world, colony, arr, table.get("source")
+
+
+def docks_over_time(
+    run_dir: str | Path,
+    *,
+    starts: int = 20,
+    seed: int = 0,
+    table: str | None = None,
+) -> dict[str, Any]:
+    """``colony_timeline`` of every colony finalist of ``run_dir`` under the run's settings,
+    from ``starts`` colony starts drawn from ``default_rng(seed)``, all curves held to the
+    longest run. ``table``: "paper" or a calibration JSON instead of the run's recorded
+    table."""
+    if starts < 1:
+        raise TimelineError(f"--starts must be >= 1, got {starts}")
+    paths = finalists(run_dir)
+    world, colony, recorded, source = run_settings(run_dir)
+    if table is not None:
+        gt = load_table(table)
+        values, source = gt.values, str(table)
+    elif recorded is not None:
+        values = recorded
+    else:
+        values, source = load_table("paper").values, "paper"
+    poses = colony_starts(np.random.default_rng(seed), starts, world, colony)
+    curves = []
+    for p in paths:
+        c = colony_timeline(read_chromosome(p), poses, table=values, world=world, colony=colony)
+        curves.append({"finalist": p.stem, "label": p.stem.replace("best_pop", "population "), **c})
+    n = max(len(c["docks_per_robot"]) for c in curves)
+    for c in curves:
+        for key, fill in (("docks_per_robot", None), ("live", None), ("charging", 0.0)):
+            c[key] = _hold(np.asarray(c[key]), n, fill).tolist()
+    return {
+        "run_dir": str(run_dir),
+        "table": source,
+        "table_matches_run": recorded is None or bool(np.array_equal(values, recorded)),
+        "starts": starts,
+        "seed": seed,
+        "ColonySettings": colony.to_dict(),
+        "dock_goal": DOCK_GOAL,
+        "live_goal": LIVE_GOAL_SHARE * colony.robots,
+        "curves": curves,
+    }
+
+
+def _rounded(doc: dict[str, Any]) -> dict[str, Any]:
+    out = dict(doc)
+    out["curves"] = [
+        {k: [round(x, 5) for x in v] if isinstance(v, list) else v for k, v in c.items()}
+        for c in doc["curves"]
+    ]
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m evolve.colony_timeline",
+                                 description=__doc__.splitlines()[0])  # fmt: skip
+    ap.add_argument("run_dir", type=Path, help="a run folder with a colony stage")
+    ap.add_argument("--starts", type=int, default=20, help="colony starts (20)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the colony starts (0)")
+    ap.add_argument(
+        "--table",
+        default=None,
+        help="'paper' or a calibration JSON (default: the run's recorded table)",
+    )
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help=f"figure path (default RUN_DIR/colony/{FIGURE_NAME}); curves beside it",
+    )
+    args = ap.parse_args(argv)
+    from evolve import figures
+
+    t0 = time.perf_counter()
+    try:
+        doc = docks_over_time(args.run_dir, starts=args.starts, seed=args.seed, table=args.table)
+    except InputError as exc:
+        print(f"evolve.colony_timeline: {exc}", file=sys.stderr)
+        return 2
+    out = args.out if args.out is not None else args.run_dir / "colony" / FIGURE_NAME
+    c = ColonySettings(**{k: _tuples(v) for k, v in doc["ColonySettings"].items()})
+    title = (
+        f"{args.run_dir}: a colony of {c.robots} ({c.blocking}, fitness {c.fitness}), "
+        f"{args.starts} colony starts (seed {args.seed}), table {doc['table']}"
+    )
+    figures.figure_colony_docks(out, doc["curves"], title)
+    atomic_write_json(out.with_suffix(".json"), _rounded(doc))
+    if not doc["table_matches_run"]:
+        print(f"note: table {doc['table']} is not the table the run recorded", file=sys.stderr)
+    print(f"{args.run_dir}: {args.starts} colony starts of {c.robots} (seed {args.seed}), "
+          f"table {doc['table']}")  # fmt: skip
+    for cv in doc["curves"]:
+        print(f"  {cv['finalist']}: docks per robot {cv['final_docks_per_robot']:.2f}, "
+              f"live at the end {cv['live_at_end']:.2f} of {cv['robots']}, "
+              f"colony steps {cv['colony_steps']:.0f}")  # fmt: skip
+    print(f"wrote {out} and {out.with_suffix('.json')} in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+__all__ = [
+    "DOCK_GOAL",
+    "FIGURE_NAME",
+    "LIVE_GOAL_SHARE",
+    "RunTimeline",
+    "TimelineError",
+    "colony_timeline",
+    "docks_over_time",
+    "finalists",
+    "run_settings",
+    "run_timeline",
+]
+
+
+if __name__ == "__main__":
+    sys.exit(main())
