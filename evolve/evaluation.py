@@ -246,9 +246,11 @@ def evaluate_colony(
     """Run every individual of ``genomes`` as a colony from every colony start (SPEC §7).
 
     ``starts``: (S, R, 3), R = ``colony.robots`` poses per run (inside the arena, centres at
-    least two disc radii apart). Every robot of a run carries the same chromosome and starts
-    with ``start_power``; ``max_steps`` bounds each robot's gait steps (default as
-    ``evaluate``). Other arguments as ``evaluate``; robot r of start s draws with (key, s, r),
+    least two disc radii apart). Every robot of a run carries the same chromosome; robot r
+    starts with ``colony.start_powers(start_power, settings.charged_power_v)[r]``
+    (``start_power`` for every robot unless ``colony.start_power_spread``); ``max_steps``
+    bounds each robot's gait steps (default as ``evaluate``). Other arguments as
+    ``evaluate``; robot r of start s draws with (key, s, r),
     the station block is the run's (robot 0's draw); ``colony.blocking`` says whether another
     robot cancels a blocked move or slides it along the contact tangent. Equal to
     ``evolve.interpreter.run_colony`` with a ``TableColony``, run by run; with R = 1 equal to
@@ -266,7 +268,7 @@ def evaluate_colony(
         start_arr,
         draws,
         pack_world(settings),
-        float(start_power),
+        np.array(colony.start_powers(start_power, settings.charged_power_v), dtype=np.float64),
         max_steps,
         mode == "navigation",
         params,

@@ -475,7 +475,9 @@ def run_colony(
 
     One colony step: each live robot in index order runs its program to its next gait
     instruction and executes it with its checks (or takes one charging or backup step).
-    ``max_steps`` (default as ``run``) bounds each robot's own gait steps; ``colony``
+    ``max_steps`` (default as ``run``) bounds each robot's own gait steps; robot i starts
+    with ``colony.start_powers(start_power, settings.charged_power_v)[i]`` (``start_power``
+    defaults to ``settings.start_power_v``; ``ColonySettings.start_power_spread``); ``colony``
     gives the charging time and the optional colony-step limit, and must have
     ``colony.robots == world.robots``. ``on_event`` receives every ``ColonyEvent``.
     """
@@ -484,6 +486,7 @@ def run_colony(
     if colony.robots != n:
         raise ValueError(f"the world holds {n} robots but colony.robots = {colony.robots}")
     power = settings.start_power_v if start_power is None else float(start_power)
+    powers = colony.start_powers(power, settings.charged_power_v)
     station = _Station()
     clock = [0]
 
@@ -493,7 +496,7 @@ def run_colony(
         return lambda e: on_event(ColonyEvent(i, clock[0], e))
 
     runs = [
-        _Run(arr, RobotView(world, i), mode, settings, power, max_steps, emitter(i),
+        _Run(arr, RobotView(world, i), mode, settings, powers[i], max_steps, emitter(i),
              index=i, station=station, charge_steps=colony.charge_steps)
         for i in range(n)
     ]  # fmt: skip

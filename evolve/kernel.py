@@ -500,10 +500,11 @@ def _union(masks, p):
 
 @njit(cache=True)
 def _start(loops, power0, max_steps, pose, power, st, masks):
-    """Every robot live at gene 0 with ``power0`` (ended at once if ``max_steps`` ≤ 0)."""
+    """Every robot live at gene 0, robot i with ``power0[i]`` (ended at once if ``max_steps``
+    ≤ 0)."""
     for i in range(pose.shape[0]):
         pose[i, 2] = wrap360(pose[i, 2])
-        power[i] = power0
+        power[i] = power0[i]
         st[i, :] = 0
         st[i, S_REM] = loops[0]
         st[i, S_END] = -1 if max_steps > 0 else END_STEP_LIMIT
@@ -519,7 +520,8 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     cycle, or runs its program to its next gait and takes it, each with its checks.
     ``code`` = decoded (loops, ops, arg, target); ``colony`` = (disc radius, minimum centre
     distance, charge steps, colony-step limit or −1, blocking code: ``BLOCK_SLIDE`` slides
-    blocked moves, 0 cancels them). ``pose`` (R, 3) holds the start poses
+    blocked moves, 0 cancels them). ``power0`` (R,): each robot's start power
+    (``ColonySettings.start_powers``). ``pose`` (R, 3) holds the start poses
     and receives the final ones; ``power`` (R,), ``st`` (R, S_COLUMNS), ``masks`` (R, 2)
     uint64 are the robots' state; ``out`` receives (colony squares, inner, colony steps).
     ``draws`` = (gait tables (R, 16, 3), reaches (R,), station seen, scatter keys (R,), σ
@@ -622,7 +624,8 @@ def evaluate_colony_flat(
     loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, colony,
     st, pose, power, masks, out_run,
 ):  # fmt: skip
-    """Run every (individual, colony start) pair: ``starts`` (S, R, 3); ``draws`` the arrays
+    """Run every (individual, colony start) pair: ``starts`` (S, R, 3); ``start_power`` (R,)
+    each robot's start power; ``draws`` the arrays
     of ``evolve.variation.KernelDraws`` for S starts × R robots; state and outputs (P·S, R, …)
     and ``out_run`` (P·S, 3), row i·S + s for individual i from start s."""
     rows, reach, seen, keys, sigma, env = draws
@@ -641,7 +644,8 @@ def evaluate_colony_flat(
 def run_colony_flat(
     loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, colony
 ):
-    """Allocate state and outputs, run ``evaluate_colony_flat`` with dynamic chunks; returns
+    """Allocate state and outputs, run ``evaluate_colony_flat`` with dynamic chunks
+    (``start_power``: (R,) each robot's start power, or one for every robot); returns
     (robot state (P·S, R, S_COLUMNS), final poses (P·S, R, 3), run outputs (P·S, 3))."""
     total = loops.shape[0] * starts.shape[0]
     n_robots = starts.shape[1]
@@ -650,10 +654,13 @@ def run_colony_flat(
     power = np.zeros((total, n_robots), dtype=np.float64)
     masks = np.zeros((total, n_robots, 2), dtype=np.uint64)
     out_run = np.zeros((total, 3), dtype=np.int64)
+    power0 = np.ascontiguousarray(
+        np.broadcast_to(np.asarray(start_power, dtype=np.float64), (n_robots,))
+    )
     old = numba.set_parallel_chunksize(CHUNK)
     try:
         evaluate_colony_flat(
-            loops, ops, arg, target, starts, tuple(draws), p, float(start_power), int(max_steps),
+            loops, ops, arg, target, starts, tuple(draws), p, power0, int(max_steps),
             bool(nav_run), np.asarray(colony, dtype=np.float64), st, pose, power, masks, out_run,
         )  # fmt: skip
     finally:

@@ -237,6 +237,14 @@ class ColonySettings:
     """``fitness = "docks"``: the docks per robot and run that count; more earn nothing, so a
     colony is not paid for robots that shuttle to the station instead of covering. 2 = issue
     17's goal of ≥ 2 docks per robot [chosen]."""
+    start_power_spread: float = 0.0
+    """The colony's start layout for power, volts [chosen; issue 17, docs/colony.md "Start
+    layout: staggered start power"]: robot i of R starts with its store at
+    min(P0 + i × spread, ``WorldSettings.charged_power_v``), P0 the run's start power (robot
+    0's: ``WorldSettings.start_power_v``, 4.0 V), never below P0 (``start_powers``). 0
+    (default): every robot starts on P0, as SPEC §7 reads; 0.5 → 4.0, 4.5, 5.0 V, so the
+    robots do not all reach the low-power threshold at once. Only the start differs: a
+    charge still ends at ``charged_power_v``."""
 
     def __post_init__(self) -> None:
         if self.fitness not in COLONY_FITNESSES:
@@ -253,6 +261,12 @@ class ColonySettings:
         cap = self.dock_cap
         if not (isinstance(cap, numbers.Integral) and not isinstance(cap, bool) and cap >= 1):
             raise SettingsError(f"dock_cap must be an integer ≥ 1 (docks per robot), got {cap!r}")
+        w = self.start_power_spread
+        number = isinstance(w, int | float) and not isinstance(w, bool)
+        if not (number and math.isfinite(w) and w >= 0):
+            raise SettingsError(
+                f"start_power_spread must be a finite number ≥ 0 (volts), got {w!r}"
+            )
         if self.blocking not in BLOCKING_RULES:
             allowed = ", ".join(repr(b) for b in BLOCKING_RULES)
             raise SettingsError(f"blocking must be one of {allowed}, got {self.blocking!r}")
@@ -283,13 +297,25 @@ class ColonySettings:
         """``blocking`` as the numba kernel's code: its index in ``BLOCKING_RULES``."""
         return BLOCKING_RULES.index(self.blocking)
 
+    def start_powers(self, start_power: float, charged_power: float) -> tuple[float, ...]:
+        """Each robot's start power, volts (``start_power_spread``): robot i of ``robots``
+        starts on max(P0, min(P0 + i × spread, ``charged_power``)), P0 = ``start_power``.
+        With spread 0 every robot starts on P0 exactly. The one rule of the interpreter
+        (``run_colony``) and the kernel (``evaluate_colony`` passes these values)."""
+        p0 = float(start_power)
+        spread = float(self.start_power_spread)
+        if spread == 0.0:
+            return (p0,) * self.robots
+        cap = float(charged_power)
+        return tuple(max(p0, min(p0 + i * spread, cap)) for i in range(self.robots))
+
     def to_dict(self) -> dict[str, Any]:
         """Every field, but ``blocking`` only when it is not ``"cancel"``, ``fitness`` only when
-        it is not ``"squares"``, ``alive_weight`` only with ``fitness = "alive"`` and
+        it is not ``"squares"``, ``alive_weight`` only with ``fitness = "alive"``,
         ``dock_weight``, ``dock_cap`` only with ``fitness = "docks"`` (the fitnesses that read
-        them): the record of a colony made before these fields existed
-        (``settings.json``, checked on resume) is unchanged, so such a run folder still
-        resumes."""
+        them) and ``start_power_spread`` only when it is not 0: the record of a colony made
+        before these fields existed (``settings.json``, checked on resume) is unchanged, so
+        such a run folder still resumes."""
         d = dataclasses.asdict(self)
         if self.blocking == "cancel":
             del d["blocking"]
@@ -299,6 +325,8 @@ class ColonySettings:
             del d["alive_weight"]
         if self.fitness != "docks":
             del d["dock_weight"], d["dock_cap"]
+        if self.start_power_spread == 0.0:
+            del d["start_power_spread"]
         return d
 
 

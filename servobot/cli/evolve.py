@@ -10,19 +10,20 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
     servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide
                                 --colony-fitness squares|alive|per_step|docks
-                                --alive-weight 8 --dock-weight 4 --dock-cap 2]
+                                --alive-weight 8 --dock-weight 4 --dock-cap 2
+                                --start-power-spread 0]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
 R, ``--blocking`` its table-world blocking rule, ``--colony-fitness`` what a colony run
 scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`` (with
-``docks``) its terms). ``--navigation`` defaults to
-``DIR/navigation/best.txt``; a 16-gene file (e.g. a ``coverage/best_pop{k}.txt``) is
-accepted too and its genes 8–15, the navigation section, are used. Bad input (missing or
-malformed files, a bad gait table, impossible sizes, a run folder holding another run or in
-use) prints one message and exits with code 2, without a traceback
-(``servobot.cli.runner``); ``--force`` deletes the stage's own files in a folder holding
-another run and starts afresh. Ctrl-C keeps the checkpoints and says how to resume (exit
+``docks``) its terms, ``--start-power-spread`` its robots' staggered start powers).
+``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
+``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the navigation section,
+are used. Bad input (missing or malformed files, a bad gait table, impossible sizes, a run
+folder holding another run or in use) prints one message and exits with code 2, without a
+traceback (``servobot.cli.runner``); ``--force`` deletes the stage's own files in a folder
+holding another run and starts afresh. Ctrl-C keeps the checkpoints and says how to resume (exit
 130).
 """
 
@@ -110,6 +111,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="colony only: a move another robot blocks is cancelled (the robot keeps its "
         "pose; SPEC §7, default) or slides along the contact tangent (its component into "
         "the other robot removed, as frictionless physics bumpers do); docs/colony.md",
+    )
+    p.add_argument(
+        "--start-power-spread",
+        type=float,
+        default=None,
+        metavar="V",
+        help="colony only: robot i starts with 4.0 + i × V volts, capped at the charged 5.0 V "
+        "(0, default: every robot on 4.0 V; 0.5: 4.0, 4.5, 5.0 V); "
+        "ColonySettings.start_power_spread, docs/colony.md",
     )
     p.add_argument(
         "--colony-fitness",
@@ -299,6 +309,11 @@ def _colony(args: argparse.Namespace) -> Any:
         elif not (np.isfinite(value) and value >= 0):
             raise CliError(f"{flag} must be a finite number ≥ 0 (squares), got {value}")
         kw[field] = value
+    if args.start_power_spread is not None:
+        v = args.start_power_spread
+        if not (np.isfinite(v) and v >= 0):
+            raise CliError(f"--start-power-spread must be a finite number ≥ 0 (volts), got {v}")
+        kw["start_power_spread"] = float(v)
     if args.robots is None:
         return ColonySettings(**kw)
     check_int(args.robots, "--robots", lo=1)
@@ -321,6 +336,8 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
         raise CliError("--robots is an option of the colony stage")
     if args.blocking is not None and args.stage != "colony":
         raise CliError("--blocking is an option of the colony stage")
+    if args.start_power_spread is not None and args.stage != "colony":
+        raise CliError("--start-power-spread is an option of the colony stage")
     if args.nav_start_power is not None and args.stage != "navigation":
         raise CliError("--nav-start-power is an option of the navigation stage")
     if args.colony_fitness is not None and args.stage != "colony":

@@ -8,7 +8,8 @@ the ``--poses FILE`` poses and powers (e.g. a coverage stage's ``handoffs.csv``)
 ``tracks.npz`` (and ``run{k}.rrd`` with ``--rrd``) into ``--out``. With ``--robots R`` each
 start is a colony of R robots sharing the station (SPEC §7): N colony starts drawn by
 ``evolve.starts.colony_starts``, or the ``--start`` poses taken R at a time (``--blocking``:
-the table world's blocking rule, ``ColonySettings.blocking``); it also writes
+the table world's blocking rule, ``ColonySettings.blocking``; ``--start-power-spread``: robot
+i starts i × V volts above the start power, ``ColonySettings.start_power_spread``); it also writes
 ``tracks{k}.png`` (``servobot.validation.colony``). Prints the per-start table
 and the summary. Exit status: 0 = all runs finished, 1 = some physics runs failed (their
 errors are in the report), 2 = bad input (message names the problem; checked before any
@@ -116,6 +117,15 @@ def build_parser() -> argparse.ArgumentParser:
         "blocks by contacts either way",
     )
     p.add_argument(
+        "--start-power-spread",
+        type=float,
+        default=None,
+        metavar="V",
+        help="with --robots: robot i starts with the start power + i × V volts, capped at the "
+        "charged 5.0 V (ColonySettings.start_power_spread; 0, default: all on 4.0 V), in both "
+        "worlds",
+    )
+    p.add_argument(
         "--seed", type=int, default=0, help="seed of the start poses and servo noise (default 0)"
     )
     p.add_argument(
@@ -190,13 +200,21 @@ def _check_options(args: argparse.Namespace, n_starts: int) -> None:
 
 
 def _colony(args: argparse.Namespace) -> ColonySettings | None:
-    """The colony of ``--robots`` and ``--blocking`` (None without ``--robots``)."""
+    """The colony of ``--robots``, ``--blocking`` and ``--start-power-spread`` (None without
+    ``--robots``)."""
     if args.robots is None:
         if args.blocking is not None:
             raise InputError("--blocking is an option of a colony (--robots R)")
+        if args.start_power_spread is not None:
+            raise InputError("--start-power-spread is an option of a colony (--robots R)")
         return None
     check_int(args.robots, "--robots", lo=1)
-    kw = {} if args.blocking is None else {"blocking": args.blocking}
+    kw: dict[str, Any] = {} if args.blocking is None else {"blocking": args.blocking}
+    if args.start_power_spread is not None:
+        v = args.start_power_spread
+        if not (np.isfinite(v) and v >= 0):
+            raise InputError(f"--start-power-spread must be a finite number ≥ 0 (volts), got {v}")
+        kw["start_power_spread"] = float(v)
     return ColonySettings(robots=args.robots, **kw)
 
 

@@ -611,7 +611,10 @@ def plan_validation(
     values = validate_table(getattr(table, "values", table))
     poses = kind.check_starts(starts, world, arena)
     if colony is not None and powers is not None:
-        raise ValidationError("powers: a colony's robots start on world.start_power_v")
+        raise ValidationError(
+            "powers: a colony's robots start on world.start_power_v (robot i on it + "
+            "i × ColonySettings.start_power_spread, capped at world.charged_power_v)"
+        )
     volts = check_powers(powers, len(poses), world)
     steps, out, rrd = check_run_options(max_steps, model, world, out_dir, rrd, mode)
     robots = 1 if colony is None else colony.robots
