@@ -155,24 +155,17 @@ def _hold(a: np.ndarray, n: int, fill: float | None = None) -> np.ndarray:
 
 
 def colony_timeline(
-    chromosome: np.ndarray,
-    starts: np.ndarray,
-    *,
-    table: GaitTable | np.ndarray,
-    world: WorldSettings,
-    colony: ColonySettings,
-    start_power: float | None = None,
-    max_steps: int | None = None,
+    chromosome: np.ndarray, starts: np.ndarray, **run: Any
 ) -> dict[str, Any]:
-    """Means over the colony ``starts`` (S, R, 3) of a chromosome's runs, per colony step
+    """Means over the colony ``starts`` (S, R, 3) of a chromosome's runs (``run``: the keyword
+    arguments of ``run_timeline``: table, world, colony, ...), per colony step
     t = 0 … T (T the longest run): ``docks_per_robot`` (cumulative docks / R), ``live`` and
     ``charging`` (robots, of R), as lists; and ``final_docks_per_robot`` (the interpreter's
     ``RunResult.docks``, mean over robots and starts: the last ``docks_per_robot``),
     ``live_at_end`` (``ColonyResult.live``, mean), ``colony_steps`` (mean run length),
     ``robots``, ``starts``."""
     starts = np.asarray(starts, dtype=np.float64)
-    runs = [run_timeline(chromosome, s, table=table, world=world, colony=colony,
-                         start_power=start_power, max_steps=max_steps) for s in starts]  # fmt: skip
+    runs = [run_timeline(chromosome, s, **run) for s in starts]
     n = max(len(r.docks) for r in runs)
     r_count = starts.shape[1]
     docks = np.mean([_hold(r.docks, n) for r in runs], axis=0) / r_count

@@ -565,17 +565,12 @@ def test_warmup_trains_the_first_generations_in_the_exact_world(tmp_path):
         Envelope(warmup_fraction=1.0)
 
 
-def test_draws_per_start_average_the_draws_of_each_start(tmp_path):
-    # Two draws per start: generation 0's fitness is the mean of the runs under key (seed, 0)
-    # and key (seed, 0, 1) from the same starts; one draw is the envelope as before.
-    twice = dataclasses.replace(LOUD, draws_per_start=2)
-    assert twice.training_keys(5, 0) == [(5, 0), (5, 0, 1)]
-    assert LOUD.training_keys(5, 3) == [(5, 3)] and NONE.training_keys(5, 3) == [(5, 3)]
-    assert dataclasses.replace(NONE, draws_per_start=3).training_keys(5, 3) == [(5, 3)]
+def _two_draws(tmp_path, envelope):
+    """Generation 0 of a population trained in ``envelope`` (2 draws per start): its
+    evaluation, and the run fitness (P, S) of each draw's key evaluated alone in ``LOUD``."""
     ga = dataclasses.replace(TINY, populations=1, generations=1, save_generations=(0, 1))
-    nav = parse_chromosome(LIGHT_FOLLOWER)
-    stage = stages.coverage_stage(WORLD, nav)
-    run = PopulationRun(0, dataclasses.replace(stage, envelope=twice), tmp_path,
+    stage = stages.coverage_stage(WORLD, parse_chromosome(LIGHT_FOLLOWER))
+    run = PopulationRun(0, dataclasses.replace(stage, envelope=envelope), tmp_path,
                         seed_seq=np.random.SeedSequence(3), table=load_table("paper"), ga=ga,
                         world=WORLD, settings_text="{}", resume=False)  # fmt: skip
     got = run.evaluate()
@@ -583,6 +578,17 @@ def test_draws_per_start_average_the_draws_of_each_start(tmp_path):
                                  load_table("paper"), WORLD, key)[0]
                for key in ((ga.seed, 0), (ga.seed, 0, 1))]  # fmt: skip
     assert not np.array_equal(per_key[0], per_key[1])
+    return got, per_key
+
+
+def test_draws_per_start_average_the_draws_of_each_start(tmp_path):
+    # Two draws per start: generation 0's fitness is the mean of the runs under key (seed, 0)
+    # and key (seed, 0, 1) from the same starts; one draw is the envelope as before.
+    twice = dataclasses.replace(LOUD, draws_per_start=2)
+    assert twice.training_keys(5, 0) == [(5, 0), (5, 0, 1)]
+    assert LOUD.training_keys(5, 3) == [(5, 3)] and NONE.training_keys(5, 3) == [(5, 3)]
+    assert dataclasses.replace(NONE, draws_per_start=3).training_keys(5, 3) == [(5, 3)]
+    got, per_key = _two_draws(tmp_path, twice)
     np.testing.assert_array_equal(got.fitness, ((per_key[0] + per_key[1]) / 2).mean(axis=1))
     with pytest.raises(EnvelopeError, match="draws_per_start"):
         Envelope(draws_per_start=0)
@@ -594,7 +600,7 @@ def test_an_envelope_recorded_before_the_training_fields_reads_back_as_it_was():
     env = Envelope.from_dict(old_record)
     assert (env.draws_per_start, env.warmup_fraction) == (1, 0.0)
     assert env.to_dict() == old_record  # a folder made then still resumes
-    assert DEFAULT.to_dict() == old_record | {"draws_per_start": 2}
+    assert DEFAULT.to_dict() == old_record | {"draws_per_start": 2, "station_strata": True}
 
 
 def test_stratified_station_draws_split_each_start_between_the_worlds():
@@ -620,14 +626,6 @@ def test_stratified_station_draws_split_each_start_between_the_worlds():
 
 def test_draw_fitness_min_scores_each_start_by_its_worst_draw(tmp_path):
     worst = dataclasses.replace(LOUD, draws_per_start=2, draw_fitness="min")
-    ga = dataclasses.replace(TINY, populations=1, generations=1, save_generations=(0, 1))
-    stage = stages.coverage_stage(WORLD, parse_chromosome(LIGHT_FOLLOWER))
-    run = PopulationRun(0, dataclasses.replace(stage, envelope=worst), tmp_path,
-                        seed_seq=np.random.SeedSequence(3), table=load_table("paper"), ga=ga,
-                        world=WORLD, settings_text="{}", resume=False)  # fmt: skip
-    got = run.evaluate()
-    per_key = [evaluate_sections(run.pop, got.starts, dataclasses.replace(stage, envelope=LOUD),
-                                 load_table("paper"), WORLD, key)[0]
-               for key in ((ga.seed, 0), (ga.seed, 0, 1))]  # fmt: skip
+    got, per_key = _two_draws(tmp_path, worst)
     np.testing.assert_array_equal(got.fitness, np.minimum(*per_key).mean(axis=1))
     assert worst.to_dict()["draw_fitness"] == "min" and "draw_fitness" not in LOUD.to_dict()

@@ -32,13 +32,13 @@ from scipy.stats import spearmanr
 from evolve import figures
 from evolve.anytime import METHODS, AnytimeSettings
 from evolve.codec import read_chromosome
+from evolve.envelope import load_envelope
 from evolve.settings import GASettings
 from evolve.stages import navigation_section
 from infra.executors import EXECUTOR_SPECS, check_spec, make_executor
 from infra.io import atomic_write_json, atomic_write_text, read_json
 from servobot.anytime.report import label, mean_of
 from servobot.anytime.run import run_anytime
-from servobot.cli.options import add_envelope_option, envelope_from_args
 from servobot.validation.lone import load_checked_table
 
 GOAL_PP = 3.0
@@ -63,7 +63,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--physics-starts", type=int, default=2)
     p.add_argument("--physics-steps", type=int, default=600)
     p.add_argument("--final-starts", type=int, default=20)
-    add_envelope_option(p)
+    p.add_argument("--envelope", default="none", metavar="none|default|FILE.json",
+                   help="envelope of variation every arm evolves in (SPEC §9; default none)")
     p.add_argument("--resume", action="store_true")
     p.add_argument(
         "--executor", type=check_spec, default="process", metavar="|".join(EXECUTOR_SPECS)
@@ -78,7 +79,7 @@ def run_arms(args: argparse.Namespace) -> dict[int, dict[str, dict[str, Any]]]:
     if warning:
         print(warning, file=sys.stderr)
     nav = navigation_section(read_chromosome(args.navigation))
-    envelope = envelope_from_args(args)
+    envelope = load_envelope(args.envelope)
     ex = make_executor(args.executor, args.workers)
     base = AnytimeSettings(
         every=args.every, top=args.top, physics_starts=args.physics_starts,

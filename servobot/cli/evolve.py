@@ -4,7 +4,7 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
 
     servobot evolve navigation [--populations 5 --generations 1024 --population-size 256
                                 --seed 0 --table paper|PATH --power paper|table
-                                --envelope none|default|FILE.json
+                                --envelope none|default|FILE.json --nav-start-power V
                                 --out runs/evolve --resume
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
@@ -17,7 +17,8 @@ Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
 R, ``--blocking`` its table-world blocking rule, ``--colony-fitness`` what a colony run
 scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`` (with
-``docks``) its terms, ``--start-power-spread`` its robots' staggered start powers).
+``docks``) its terms, ``--start-power-spread`` its robots' staggered start powers;
+``--nav-start-power``: ``NavigationSettings.start_power_v``).
 ``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
 ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the navigation section,
 are used. Bad input (missing or malformed files, a bad gait table, impossible sizes, a run
