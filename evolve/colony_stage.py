@@ -37,7 +37,6 @@ from evolve.stages import (
     _run_populations,
     _stage_folder,
     _write_figure9,
-    coverage_run_fitness,
     envelope_figure9,
     figure9_both,
     figure9_summary,
@@ -82,9 +81,7 @@ def colony_stage_fitness(
 ) -> np.ndarray:
     """Run fitness (P, S) of the colony stage: ``colony.fitness`` of each colony run
     (``evolve.evaluation.colony_run_fitness``, robots' step limit ``world.coverage_steps``);
-    ``"squares"`` is ``coverage_run_fitness`` of the colony squares, bit for bit."""
-    if colony.fitness == "squares":
-        return coverage_run_fitness(ev, starts, world)
+    ``"squares"`` is the colony squares as float64, as ``coverage_run_fitness``."""
     from evolve.evaluation import colony_run_fitness  # numba: loaded on first use
 
     return colony_run_fitness(ev, colony, world.coverage_steps)

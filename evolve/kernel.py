@@ -645,7 +645,7 @@ def run_colony_flat(
     loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, colony
 ):
     """Allocate state and outputs, run ``evaluate_colony_flat`` with dynamic chunks
-    (``start_power``: (R,) each robot's start power, or one for every robot); returns
+    (``start_power``: (R,) each robot's start power); returns
     (robot state (P·S, R, S_COLUMNS), final poses (P·S, R, 3), run outputs (P·S, 3))."""
     total = loops.shape[0] * starts.shape[0]
     n_robots = starts.shape[1]
@@ -654,9 +654,7 @@ def run_colony_flat(
     power = np.zeros((total, n_robots), dtype=np.float64)
     masks = np.zeros((total, n_robots, 2), dtype=np.uint64)
     out_run = np.zeros((total, 3), dtype=np.int64)
-    power0 = np.ascontiguousarray(
-        np.broadcast_to(np.asarray(start_power, dtype=np.float64), (n_robots,))
-    )
+    power0 = np.ascontiguousarray(start_power, dtype=np.float64)
     old = numba.set_parallel_chunksize(CHUNK)
     try:
         evaluate_colony_flat(

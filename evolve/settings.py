@@ -15,6 +15,7 @@ import numbers
 from dataclasses import dataclass
 from typing import Any
 
+from infra.bounds import is_finite_number
 from infra.errors import InputError
 
 
@@ -250,23 +251,14 @@ class ColonySettings:
         if self.fitness not in COLONY_FITNESSES:
             allowed = ", ".join(repr(f) for f in COLONY_FITNESSES)
             raise SettingsError(f"fitness must be one of {allowed}, got {self.fitness!r}")
-        w = self.alive_weight
-        number = isinstance(w, int | float) and not isinstance(w, bool)
-        if not (number and math.isfinite(w) and w >= 0):
-            raise SettingsError(f"alive_weight must be a finite number ≥ 0 (squares), got {w!r}")
-        w = self.dock_weight
-        number = isinstance(w, int | float) and not isinstance(w, bool)
-        if not (number and math.isfinite(w) and w >= 0):
-            raise SettingsError(f"dock_weight must be a finite number ≥ 0 (squares), got {w!r}")
+        for name, unit in (("alive_weight", "squares"), ("dock_weight", "squares"),
+                           ("start_power_spread", "volts")):  # fmt: skip
+            w = getattr(self, name)
+            if not (is_finite_number(w) and w >= 0):
+                raise SettingsError(f"{name} must be a finite number ≥ 0 ({unit}), got {w!r}")
         cap = self.dock_cap
         if not (isinstance(cap, numbers.Integral) and not isinstance(cap, bool) and cap >= 1):
             raise SettingsError(f"dock_cap must be an integer ≥ 1 (docks per robot), got {cap!r}")
-        w = self.start_power_spread
-        number = isinstance(w, int | float) and not isinstance(w, bool)
-        if not (number and math.isfinite(w) and w >= 0):
-            raise SettingsError(
-                f"start_power_spread must be a finite number ≥ 0 (volts), got {w!r}"
-            )
         if self.blocking not in BLOCKING_RULES:
             allowed = ", ".join(repr(b) for b in BLOCKING_RULES)
             raise SettingsError(f"blocking must be one of {allowed}, got {self.blocking!r}")
@@ -417,8 +409,7 @@ class NavigationSettings:
         if not (isinstance(ramp, int | float) and 0.0 <= ramp <= 1.0):
             raise SettingsError(f"start_ramp_fraction must be in [0, 1], got {ramp!r}")
         v = self.start_power_v
-        if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
-                              or not math.isfinite(v) or v <= 0.0):  # fmt: skip
+        if v is not None and not (is_finite_number(v) and v > 0.0):
             raise SettingsError(f"start_power_v must be a voltage > 0 or None, got {v!r}")
 
     def ramp_generations(self, generations: int) -> int:

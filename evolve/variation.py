@@ -131,9 +131,10 @@ class Variation:
         return cls(envelope, values, sigma, fold(words), station_block(world), float(radius),
                    float(world.object_range), fold(station_key), offset)  # fmt: skip
 
-    def run_key(self, start: int, robot: int) -> int:
-        """Robot ``robot``'s run key at start index ``start``."""
-        return absorb(absorb(self.trial, int(start)), int(robot))
+    def run_key(self, start: int, robot: int, trial: int | None = None) -> int:
+        """Robot ``robot``'s run key at start index ``start`` (of ``trial``; default the
+        batch's folded key)."""
+        return absorb(absorb(self.trial if trial is None else trial, int(start)), int(robot))
 
     def robot(self, start: int, robot: int) -> RobotDraws:
         """Robot ``robot``'s draws for the run from start index ``start``."""
@@ -159,7 +160,7 @@ class Variation:
         p = self.envelope.station_seen_p
         if p <= 0.0:
             return False
-        key = absorb(absorb(self.station_trial, int(start)), 0)
+        key = self.run_key(start, 0, self.station_trial)
         return (unit(absorb(key, STREAM_STATION)) + self.station_offset) % 1.0 < p
 
     def packed(self) -> np.ndarray:

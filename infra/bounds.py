@@ -131,6 +131,14 @@ def check_int(value: Any, option: str, *, lo: int, hi: int | None = None) -> int
     return value
 
 
+def check_nonnegative(value: Any, option: str, unit: str) -> float:
+    """``value`` as a finite float ≥ 0 (``is_finite_number``), else ``BoundsError`` naming
+    ``option`` and its ``unit``."""
+    if not (is_finite_number(value) and value >= 0):
+        raise BoundsError(f"{option} must be a finite number ≥ 0 ({unit}), got {value!r}")
+    return float(value)
+
+
 def check_number(value: Any, option: str, *, lo: float, hi: float, unit: str = "") -> float:
     """``value`` as a finite float in [lo, hi], else ``BoundsError`` naming ``option``."""
     try:
@@ -148,6 +156,7 @@ __all__ = [
     "LIMITS",
     "BoundsError",
     "Limits",
+    "check_nonnegative",
     "Need",
     "check_int",
     "check_need",

@@ -328,9 +328,17 @@ NAV = parse_chromosome(LIGHT_FOLLOWER)
 TABLE = load_table("paper")
 
 
-def test_a_folder_written_before_the_field_resumes(tmp_path):
-    """A settings.json without ``fitness`` (as written before the field existed) resumes with
-    the default; another fitness is refused on resume."""
+def tiny_colony_cli(tmp_path) -> list[str]:
+    """Options of a tiny ``servobot evolve colony`` run whose navigation section is ``NAV``
+    (written to ``tmp_path/nav.txt``)."""
+    nav = write_chromosome(tmp_path / "nav.txt", NAV)
+    return ["--populations", "1", "--population-size", "8", "--generations", "2",
+            "--no-progress", "--navigation", str(nav)]  # fmt: skip
+
+
+def interrupted_colony_stage(tmp_path) -> dict:
+    """A tiny colony stage with the default ``ColonySettings`` interrupted at generation 3 in
+    ``tmp_path``; its ``settings.json``."""
 
     def kill_at(info):
         if info["generation"] == 3:
@@ -338,7 +346,13 @@ def test_a_folder_written_before_the_field_resumes(tmp_path):
 
     with pytest.raises(Interrupt):
         run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, on_generation=kill_at)
-    doc = json.loads((tmp_path / "colony/settings.json").read_text())
+    return json.loads((tmp_path / "colony/settings.json").read_text())
+
+
+def test_a_folder_written_before_the_field_resumes(tmp_path):
+    """A settings.json without ``fitness`` (as written before the field existed) resumes with
+    the default; another fitness is refused on resume."""
+    doc = interrupted_colony_stage(tmp_path)
     assert not {"fitness", "alive_weight", "blocking"} & set(doc["ColonySettings"])
     with pytest.raises(InputError, match='ColonySettings.fitness: absent there, "alive" here'):
         run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, resume=True,
@@ -363,9 +377,7 @@ def test_the_summary_reports_live_robots_and_the_run_fitness(tmp_path):
 def test_the_cli_option(tmp_path, capsys):
     from servobot.cli.evolve import main
 
-    nav = write_chromosome(tmp_path / "nav.txt", NAV)
-    tiny = ["--populations", "1", "--population-size", "8", "--generations", "2",
-            "--no-progress", "--navigation", str(nav)]  # fmt: skip
+    tiny = tiny_colony_cli(tmp_path)
     out = tmp_path / "run"
     assert main(["colony", *tiny, "--colony-fitness", "per_step", "--out", str(out)]) == 0
     summary = json.loads((out / "colony/summary.json").read_text())

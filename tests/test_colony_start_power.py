@@ -14,9 +14,8 @@ import json
 import numpy as np
 import pytest
 from chromosome_text import LIGHT_FOLLOWER, STILL, B, G, chrom, gene
-from test_colony_fitness import HISTORY_BEFORE
+from test_colony_fitness import HISTORY_BEFORE, interrupted_colony_stage, tiny_colony_cli
 from test_colony_kernel import NEAR_STATION
-from test_stages import Interrupt
 
 from evolve.codec import LOW_POWER, parse_chromosome, write_chromosome
 from evolve.colony_stage import run_colony_stage
@@ -243,14 +242,7 @@ def test_the_record_names_the_spread_only_when_not_zero():
 def test_a_folder_written_before_the_field_resumes(tmp_path):
     """A settings.json without ``start_power_spread`` resumes with spread 0; a spread is
     refused on resume."""
-
-    def kill_at(info):
-        if info["generation"] == 3:
-            raise Interrupt
-
-    with pytest.raises(Interrupt):
-        run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, on_generation=kill_at)
-    doc = json.loads((tmp_path / "colony/settings.json").read_text())
+    doc = interrupted_colony_stage(tmp_path)
     assert "start_power_spread" not in doc["ColonySettings"]
     with pytest.raises(InputError, match="ColonySettings.start_power_spread: absent there, 0.5"):
         run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, resume=True,
@@ -264,9 +256,7 @@ def test_the_cli_options(tmp_path, capsys):
     from servobot.cli import validate as validate_cli
     from servobot.cli.evolve import main
 
-    nav = write_chromosome(tmp_path / "nav.txt", NAV)
-    tiny = ["--populations", "1", "--population-size", "8", "--generations", "2",
-            "--no-progress", "--navigation", str(nav)]  # fmt: skip
+    tiny = tiny_colony_cli(tmp_path)
     out = tmp_path / "run"
     assert main(["colony", *tiny, "--start-power-spread", "0.5", "--out", str(out)]) == 0
     summary = json.loads((out / "colony/summary.json").read_text())

@@ -48,7 +48,7 @@ from evolve.settings import (
     WorldSettings,
     navigation_ga_settings,
 )
-from infra.bounds import check_int
+from infra.bounds import check_int, check_nonnegative
 from infra.errors import InputError
 from infra.executors import Executor
 from infra.io import check_output_dir
@@ -307,14 +307,12 @@ def _colony(args: argparse.Namespace) -> Any:
             raise CliError(f"{flag} is an option of --colony-fitness {fitness}")
         if field == "dock_cap":
             check_int(value, flag, lo=1)
-        elif not (np.isfinite(value) and value >= 0):
-            raise CliError(f"{flag} must be a finite number ≥ 0 (squares), got {value}")
+        else:
+            check_nonnegative(value, flag, "squares")
         kw[field] = value
     if args.start_power_spread is not None:
-        v = args.start_power_spread
-        if not (np.isfinite(v) and v >= 0):
-            raise CliError(f"--start-power-spread must be a finite number ≥ 0 (volts), got {v}")
-        kw["start_power_spread"] = float(v)
+        kw["start_power_spread"] = check_nonnegative(args.start_power_spread,
+                                                     "--start-power-spread", "volts")  # fmt: skip
     if args.robots is None:
         return ColonySettings(**kw)
     check_int(args.robots, "--robots", lo=1)

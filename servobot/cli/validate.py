@@ -32,7 +32,7 @@ from evolve.codec import SECTION_GENES, ChromosomeError, read_chromosome
 from evolve.handoff import read_poses
 from evolve.settings import BLOCKING_RULES, ColonySettings, WorldSettings
 from evolve.starts import colony_starts, coverage_starts
-from infra.bounds import check_int, check_need, check_number
+from infra.bounds import check_int, check_need, check_nonnegative, check_number
 from infra.errors import InputError
 from servo_mj.robot.gaits import MAX_TARGET_RAD
 from servo_mj.robot.settings import PhysicsSettings
@@ -211,10 +211,8 @@ def _colony(args: argparse.Namespace) -> ColonySettings | None:
     check_int(args.robots, "--robots", lo=1)
     kw: dict[str, Any] = {} if args.blocking is None else {"blocking": args.blocking}
     if args.start_power_spread is not None:
-        v = args.start_power_spread
-        if not (np.isfinite(v) and v >= 0):
-            raise InputError(f"--start-power-spread must be a finite number ≥ 0 (volts), got {v}")
-        kw["start_power_spread"] = float(v)
+        kw["start_power_spread"] = check_nonnegative(args.start_power_spread,
+                                                     "--start-power-spread", "volts")  # fmt: skip
     return ColonySettings(robots=args.robots, **kw)
 
 
