@@ -20,15 +20,17 @@ from servobot.cli import main as servobot
 from servobot.cli import trace
 
 TINY = ["--populations", "2", "--population-size", "8", "--no-progress"]
+COVERAGE = ["coverage", *TINY, "--generations", "3", "--starts-per-generation", "3"]
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
-    """A tiny navigation run, then a tiny coverage run with its default --navigation."""
+    """A tiny navigation run, then a tiny coverage run (3 training starts per generation) with
+    its default --navigation."""
     out = tmp_path_factory.mktemp("evolve")
     assert servobot(["evolve", "navigation", *TINY, "--generations", "6", "--out", str(out)]) == 0
-    assert servobot(["evolve", "coverage", *TINY, "--generations", "3", "--out", str(out)]) == 0
+    assert servobot(["evolve", *COVERAGE, "--out", str(out)]) == 0
     return out
 
 
@@ -67,6 +69,9 @@ def test_coverage_outputs(run_dir):
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     summary = json.loads((cov / "summary.json").read_text())
     assert summary["generations"] == [0, 1, 3]
+    assert summary["settings"]["GASettings"]["starts_per_generation"] == 3
+    with np.load(cov / "populations" / "pop0_gen0003.npz") as saved:
+        assert saved["starts"].shape == (3, 3)  # the generation's 3 training starts (x, y, h)
     mean = np.mean([float(r["inner_percent"]) for r in rows if r["generation"] == "3"])
     assert math.isclose(summary["final_mean_inner_percent"], mean, abs_tol=1e-3)
 
@@ -90,7 +95,7 @@ def test_colony_outputs(run_dir, capsys):
 
 def test_resume_of_a_finished_run_changes_nothing(run_dir, capsys):
     before = (run_dir / "coverage/figure9.csv").read_text()
-    args = ["coverage", *TINY, "--generations", "3", "--out", str(run_dir), "--resume"]
+    args = [*COVERAGE, "--out", str(run_dir), "--resume"]
     assert servobot(["evolve", *args]) == 0
     assert (run_dir / "coverage/figure9.csv").read_text() == before
     assert "Figure 9 at generation 3" in capsys.readouterr().out
@@ -102,6 +107,8 @@ def test_resume_of_a_finished_run_changes_nothing(run_dir, capsys):
         (["coverage", "--out", "{tmp}"], "no navigation section file"),
         (["navigation", "--population-size", "1", "--out", "{tmp}"], "population-size must be"),
         (["navigation", "--generations", "0", "--out", "{tmp}"], "generations must be"),
+        (["coverage", "--starts-per-generation", "0", "--out", "{tmp}"],
+         "--starts-per-generation must be ≥ 1, got 0"),
         (["navigation", "--table", "{tmp}/none.json", "--out", "{tmp}"], "no such gait-table"),
         (["navigation", "--navigation", "x.txt", "--out", "{tmp}"], "option of the coverage"),
         (["colony", "--out", "{tmp}"], "no navigation section file"),

@@ -3,7 +3,8 @@
 A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
 
     servobot evolve navigation [--populations 5 --generations 1024 --population-size 256
-                                --seed 0 --table paper|PATH --power paper|table
+                                --starts-per-generation 40 --seed 0
+                                --table paper|PATH --power paper|table
                                 --envelope none|default|FILE.json --nav-start-power V
                                 --out runs/evolve --resume
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
@@ -194,6 +195,7 @@ def ga_settings(args: argparse.Namespace) -> GASettings:
         ("populations", args.populations),
         ("generations", args.generations),
         ("population_size", args.population_size),
+        ("starts_per_generation", args.starts_per_generation),
         ("seed", args.seed),
     ):
         if value is not None:
@@ -205,6 +207,8 @@ def ga_settings(args: argparse.Namespace) -> GASettings:
         raise CliError(f"--population-size must be ≥ 2, got {ga.population_size}")
     if ga.generations < 1:
         raise CliError(f"--generations must be ≥ 1, got {ga.generations}")
+    if ga.starts_per_generation < 1:
+        raise CliError(f"--starts-per-generation must be ≥ 1, got {ga.starts_per_generation}")
     if ga.seed < 0:
         raise CliError(f"--seed must be ≥ 0, got {ga.seed}")
     return ga

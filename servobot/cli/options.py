@@ -109,11 +109,16 @@ def envelope_from_args(args: argparse.Namespace) -> Envelope:
 def add_ga_options(p: argparse.ArgumentParser, generations: str) -> None:
     """Add the options ``servobot.cli.evolve.ga_settings`` reads, each None = the stage's default:
     ``--populations``, ``--generations`` (its default described by ``generations``),
-    ``--population-size`` and ``--seed``."""
+    ``--population-size``, ``--starts-per-generation`` and ``--seed``."""
     for flag, what in (
         ("--populations", "independent populations (default 5)"),
         ("--generations", f"generations (default {generations})"),
         ("--population-size", "individuals per population (256)"),
+        (
+            "--starts-per-generation",
+            "training starts drawn anew each generation and shared by the population "
+            "(default: 40 for navigation, 10 for coverage and colony; GASettings)",
+        ),
         ("--seed", "seed of every random draw (0)"),
     ):
         p.add_argument(flag, type=int, default=None, help=what)

@@ -67,6 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"steps per coverage run (default {d.steps}; navigation runs at most 100)")
     p.add_argument("--seed", type=int, default=d.seed,
                    help="seed of the start poses and the servo noise (default 0)")
+    p.add_argument("--noise-seed", type=int, default=None, metavar="N",
+                   help="seed of the servo noise alone (default: --seed): the same starts "
+                   "under another noise draw (python -m servobot.robustness.floor)")
     p.add_argument("--table", default=d.table, metavar="paper|PATH",
                    help="gait table of the table world (default: paper's Figure 4)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR",
@@ -94,7 +97,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.workers is not None:
         check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
     settings = RobustnessSettings(worlds=args.worlds, starts=args.starts, steps=args.steps,
-                                  seed=args.seed, table=args.table, rrd=args.rrd)  # fmt: skip
+                                  seed=args.seed, noise_seed=args.noise_seed, table=args.table,
+                                  rrd=args.rrd)  # fmt: skip
     cells = len(args.chromosome) * len(args.worlds)
     bar = RunBar("robustness", enabled=not args.no_progress, total=cells * args.starts)
     try:

@@ -18,7 +18,8 @@ navigation section runs in navigation mode from N navigation starts clear of the
 block (``clear_navigation_starts(default_rng(seed), N)``), at most
 ``WorldSettings.navigation_steps`` steps. These are the starts ``servobot validate FILE
 --starts N --seed S`` draws, so the ``shipped`` column equals that command's physics. Servo
-noise: ``PhysicsSettings`` default, run k seeded by ``(seed, k)`` in every world.
+noise: ``PhysicsSettings`` default, run k seeded by ``(seed, k)`` in every world
+(``(noise_seed, k)`` when given: the same starts under another noise draw).
 
 The table world does not depend on the physics world; every cell runs it again (it costs
 milliseconds) and the matrix checks that each controller's table runs agree across the worlds
@@ -106,10 +107,18 @@ class RobustnessSettings:
     ``min(steps, WorldSettings.navigation_steps)``."""
     seed: int = 0
     """Seed of the start poses (``default_rng(seed)``) and of the servo noise."""
+    noise_seed: int | None = None
+    """Seed of the servo noise alone (None: ``seed``): the same starts under another noise
+    draw, physics' own run-to-run spread (``servobot.robustness.floor``)."""
     table: str = "paper"
     """Gait table of the table world: ``paper`` or a calibration file of the shipped robot."""
     rrd: bool = False
     """Write a rerun recording of every run (``run{k}.rrd`` in each cell's folder)."""
+
+    @property
+    def servo_seed(self) -> int:
+        """The seed of every run's servo noise."""
+        return self.seed if self.noise_seed is None else self.noise_seed
 
 
 @dataclass(frozen=True)
@@ -176,6 +185,8 @@ def check_settings(s: RobustnessSettings, cells: int, workers: int | None) -> No
     check_int(s.starts, "--starts", lo=1)
     check_int(s.steps, "--steps", lo=1)
     check_int(s.seed, "--seed", lo=0)
+    if s.noise_seed is not None:
+        check_int(s.noise_seed, "--noise-seed", lo=0)
     need, _ = validation_need(s.starts, s.steps, workers, s.rrd)
     check_need(Need(need.memory_bytes, need.wall_s * cells),
                f"{cells} cells × --starts {s.starts} × --steps {s.steps}")  # fmt: skip
@@ -204,8 +215,8 @@ def table_info(table: Any) -> dict[str, str]:
 def _expected(cell: Cell, table_values: np.ndarray, s: RobustnessSettings) -> dict[str, Any]:
     """What a cell's ``report.json`` must hold to count as done (JSON round-tripped)."""
     world = WorldSettings()
-    settings = validation_settings(world, cell.world.arena, None, cell.steps, s.seed, cell.model,
-                                   cell.controller.mode)  # fmt: skip
+    settings = validation_settings(world, cell.world.arena, None, cell.steps, s.servo_seed,
+                                   cell.model, cell.controller.mode)  # fmt: skip
     settings.pop("model")  # the label is a path; the hash says which model
     doc = {
         "chromosome": format_chromosome(cell.controller.bits),
@@ -271,8 +282,11 @@ def settings_record(
     rows: list[dict[str, Any]], table: dict[str, str],
 ) -> dict[str, Any]:  # fmt: skip
     """The folder's ownership record: the settings and the contents of every input."""
+    record = dataclasses.asdict(dataclasses.replace(s, worlds=tuple(w.name for w in worlds)))
+    if s.noise_seed is None:  # absent, so folders written before it existed still resume
+        del record["noise_seed"]
     return jsonable({
-        "RobustnessSettings": dataclasses.replace(s, worlds=tuple(w.name for w in worlds)),
+        "RobustnessSettings": record,
         "controllers": [{"name": c.name, "chromosome": format_chromosome(c.bits)}
                         for c in controllers],
         "worlds": [{"name": r["name"], "model_sha256": r["model_sha256"], "arena": w.arena}
@@ -334,7 +348,7 @@ def run_matrix(
             plans.append(plan_validation(
                 cell.controller.bits, cell.starts, table=table, arena=cell.world.arena,
                 out_dir=cell.folder, rrd=settings.rrd, max_steps=cell.steps,
-                seed=settings.seed, model=cell.model, force=True,
+                seed=settings.servo_seed, model=cell.model, force=True,
                 workers=None if executor else workers,
                 meta={"world": cell.world.name, "chromosome_file": str(cell.controller.file),
                       "command": "servobot robustness"},
@@ -357,7 +371,7 @@ def _head(s: RobustnessSettings, cells: list[Cell], table: dict[str, str]) -> di
         "starts": s.starts, "steps": s.steps,
         "navigation_steps": steps_of(NAVIGATION_MODE, s, WorldSettings()), "seed": s.seed,
         "table": table, "rrd": s.rrd, "start_poses": poses,
-    }  # fmt: skip
+    } | ({} if s.noise_seed is None else {"noise_seed": s.noise_seed})  # fmt: skip
 
 
 __all__ = [

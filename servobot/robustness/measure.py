@@ -12,7 +12,10 @@ worlds ``shipped`` and ``station-seen`` (``run_matrix`` into ``OUT/matrix``, res
 table side is the arm's own world: the exact table for ``none``, else the mean over draws of
 the envelope. ``--tune`` scores a grid of envelopes on the same physics runs, each world
 against the envelope with the station block never (``shipped``) or always (``station-seen``)
-seen. Writes ``OUT/ranking.json`` and ``OUT/ranking.md``.
+seen. Beside the agreement, its ceiling: the best any model reaches against one run of a world
+that varies as the envelope says (``ranking.noise_ceiling``: the arm's envelope, ``default``
+for ``none``, against one draw of itself, the same genomes and starts). Writes
+``OUT/ranking.json`` and ``OUT/ranking.md``.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from servobot.robustness.ranking import (
     RankingError,
     agreement,
     generation_bests,
+    noise_ceiling,
     seen,
     table_runs,
     top_genomes,
@@ -166,10 +170,14 @@ def main(argv: list[str] | None = None) -> int:
             gs, starts, table=table, envelope=envelope, seed=a.seed, draws=a.draws, steps=a.steps
         )
         exact = own if envelope == NONE else table_runs(gs, starts, table=table, steps=a.steps)
+        varied = DEFAULT if envelope == NONE else envelope
         out["agreement"][sample] = {
             "own world": {w: agreement(own, phys[w]) for w in WORLDS},
             "exact world": {w: agreement(exact, phys[w]) for w in WORLDS},
-        }
+            "ceiling": {w: noise_ceiling(gs, starts, table=table, seed=a.seed, draws=a.draws,
+                                         envelope=seen(varied, w != WORLDS[0]), steps=a.steps)
+                        for w in WORLDS},
+        }  # fmt: skip
     if a.tune:
         top = samples["top20"]
         phys = {w: v[: len(top)] for w, v in phys_all.items()}

@@ -121,6 +121,35 @@ def table_runs(
     return total / n
 
 
+def noise_ceiling(
+    genomes: list[Genome],
+    starts: np.ndarray,
+    *,
+    table,
+    envelope: Envelope,
+    seed: int = 0,
+    draws: int = 16,
+    realisations: int = 4,
+    steps: int | None = None,
+) -> dict[str, float]:
+    """The best ``agreement`` any model can reach against one run of a world that varies as
+    ``envelope`` says: the envelope's prediction (``table_runs``, ``draws`` draws per start)
+    against one draw of it per start (keys of ``seed + 1``, never the prediction's), averaged
+    over ``realisations`` such draws. With ``NONE`` a run is its own prediction (Spearman 1,
+    |Δ| 0)."""
+    if realisations < 1:
+        raise ValueError(f"realisations must be ≥ 1, got {realisations}")
+    pred = table_runs(genomes, starts, table=table, envelope=envelope, seed=seed, draws=draws,
+                      steps=steps)  # fmt: skip
+    bits = np.stack([g.bits for g in genomes])
+    scores = []
+    for r in range(realisations):
+        one = evaluate(bits, starts, table=table, mode="coverage", max_steps=steps,
+                       envelope=envelope, envelope_key=key_of_test(seed + 1, "ranking", r))
+        scores.append(agreement(pred, one.inner_squares.astype(np.float64)))
+    return {k: float(np.mean([sc[k] for sc in scores])) for k in scores[0]}
+
+
 def seen(envelope: Envelope, station_seen: bool) -> Envelope:
     """``envelope`` with the station block always (or never) seen: its prediction for one
     physics world (``station-seen`` or ``shipped``)."""
