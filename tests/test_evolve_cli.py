@@ -14,6 +14,10 @@ import numpy as np
 import pytest
 
 from evolve.codec import read_chromosome, write_chromosome
+from evolve.settings import (
+    ENVELOPE_COVERAGE_STARTS_PER_GENERATION,
+    NAVIGATION_STARTS_PER_GENERATION,
+)
 from evolve.table import PAPER_TABLE
 from servobot.cli import evolve as cli
 from servobot.cli import main as servobot
@@ -290,3 +294,19 @@ def test_stage_files_list_every_file_a_stage_writes(run_dir):
         folder = run_dir / stage
         written = {p for p in folder.rglob("*") if p.is_file() and p.name != LOCK_FILE}
         assert set(owned_files(folder, [*STAGE_FILES, RECORD_FILE])) == written
+
+
+@pytest.mark.parametrize(
+    ("argv", "starts"),
+    [
+        (["navigation"], NAVIGATION_STARTS_PER_GENERATION),
+        (["coverage"], 10),  # the paper's
+        (["coverage", "--envelope", "none"], 10),
+        (["coverage", "--envelope", "default"], ENVELOPE_COVERAGE_STARTS_PER_GENERATION),
+        (["coverage", "--envelope", "default", "--starts-per-generation", "12"], 12),
+        (["colony", "--envelope", "default"], 10),
+    ],
+)
+def test_training_starts_per_generation_by_stage_and_envelope(argv, starts):
+    assert ENVELOPE_COVERAGE_STARTS_PER_GENERATION == 30
+    assert cli.ga_settings(cli.build_parser().parse_args(argv)).starts_per_generation == starts

@@ -101,13 +101,14 @@ def test_the_physics_floor_by_hand(tmp_path):
     shipped = physics["shipped"]
     # |Δ| per run: 2, 3, 0, 4, 4, 2 → 15 / 6; means a 15, 35, 5 and b 14.5, 37, 8 (same order)
     assert shipped["mean_abs_delta"] == pytest.approx(2.5)
+    assert shipped["best_abs_delta"] == pytest.approx(2.5 / np.sqrt(2.0))
     assert shipped["spearman"] == pytest.approx(1.0)
     assert shipped["table_mean"] == pytest.approx(55 / 3) and shipped["chromosomes"] == 3
     assert floor_main([str(tmp_path / "a"), str(tmp_path / "b"), "--draws", "2",
                        "--realisations", "1", "--out", str(tmp_path / "out")]) == 0  # fmt: skip
     doc = json.loads((tmp_path / "out" / "floor.json").read_text())
     assert doc["physics"]["shipped"]["mean_abs_delta"] == pytest.approx(2.5)
-    assert set(doc["table"]) == {"shipped"} and "| shipped | 1.00 | 2.5 |" in (
+    assert set(doc["table"]) == {"shipped"} and "| shipped | 1.00 | 2.5 | 1.8 |" in (
         tmp_path / "out" / "floor.md"
     ).read_text()
 

@@ -13,6 +13,7 @@ import rerun as rr
 from evolve.codec import read_chromosome
 from evolve.envelope import DEFAULT
 from evolve.population import save_generations
+from evolve.settings import ENVELOPE_COVERAGE_STARTS_PER_GENERATION
 from evolve.table import load_table
 from infra.rundir import RunDirError
 from servobot.cli.reproduce import main
@@ -190,6 +191,8 @@ def test_envelope_reaches_the_stages(envelope_dir: Path) -> None:
     assert 0.0 <= cov["envelope_final_mean_inner_percent"] <= 100.0
     summ = json.loads((out / "coverage" / "summary.json").read_text())
     assert summ["envelope_final_mean_inner_percent"] == cov["envelope_final_mean_inner_percent"]
+    ga = json.loads((out / "coverage" / "settings.json").read_text())["GASettings"]
+    assert ga["starts_per_generation"] == ENVELOPE_COVERAGE_STARTS_PER_GENERATION  # 10 in none
     assert json.loads((out / "navigation" / "settings.json").read_text())["Envelope"]
     text = (out / "REPORT.md").read_text()
     assert "Envelope: `default`" in text

@@ -42,11 +42,13 @@ from typing import Any
 
 import numpy as np
 
+from evolve.envelope import NONE
 from evolve.settings import (
     BLOCKING_RULES,
     COLONY_FITNESSES,
     GASettings,
     WorldSettings,
+    coverage_ga_settings,
     navigation_ga_settings,
 )
 from infra.bounds import check_int, check_nonnegative
@@ -189,7 +191,12 @@ def executor(args: argparse.Namespace) -> Executor | None:
 
 def ga_settings(args: argparse.Namespace) -> GASettings:
     """The stage's GA settings with the command-line overrides applied."""
-    base = navigation_ga_settings() if args.stage == "navigation" else GASettings()
+    if args.stage == "navigation":
+        base = navigation_ga_settings()
+    elif args.stage == "coverage":
+        base = coverage_ga_settings(in_envelope=envelope_from_args(args) != NONE)
+    else:
+        base = GASettings()
     over: dict[str, Any] = {}
     for field, value in (
         ("populations", args.populations),

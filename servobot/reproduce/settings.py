@@ -10,7 +10,13 @@ from typing import Any
 from calibration.calibrate import TABLE_FILE
 from calibration.measure import CalibrationSettings
 from evolve.envelope import NONE, Envelope, load_envelope
-from evolve.settings import BLOCKING_RULES, ColonySettings, GASettings, navigation_ga_settings
+from evolve.settings import (
+    BLOCKING_RULES,
+    ColonySettings,
+    GASettings,
+    coverage_ga_settings,
+    navigation_ga_settings,
+)
 from infra.errors import InputError
 from servo_mj.robot.model import check_model, model_sha256
 from servobot.robustness.matrix import RobustnessSettings
@@ -153,8 +159,8 @@ class ReproduceSettings:
     def coverage_ga(self) -> GASettings:
         """GA settings of the coverage stage."""
         return self._ga(
-            GASettings(), self.coverage_populations, self.coverage_population_size,
-            self.coverage_generations,
+            coverage_ga_settings(in_envelope=self.envelope_value() != NONE),
+            self.coverage_populations, self.coverage_population_size, self.coverage_generations,
         )  # fmt: skip
 
     def envelope_value(self) -> Envelope:
