@@ -32,8 +32,8 @@ from scipy.stats import spearmanr
 from evolve import figures
 from evolve.anytime import METHODS, AnytimeSettings
 from evolve.codec import read_chromosome
-from evolve.envelope import load_envelope
-from evolve.settings import GASettings
+from evolve.envelope import NONE, load_envelope
+from evolve.settings import coverage_ga_settings
 from evolve.stages import navigation_section
 from infra.executors import EXECUTOR_SPECS, check_spec, make_executor
 from infra.io import atomic_write_json, atomic_write_text, read_json
@@ -88,8 +88,10 @@ def run_arms(args: argparse.Namespace) -> dict[int, dict[str, dict[str, Any]]]:
     methods = ["none"] + [m for m in args.methods if m != "none"]
     out: dict[int, dict[str, dict[str, Any]]] = {}
     for seed in args.seeds:
-        ga = GASettings(populations=args.populations, generations=args.generations,
-                        population_size=args.population_size, seed=seed)  # fmt: skip
+        ga = coverage_ga_settings(
+            in_envelope=envelope != NONE, populations=args.populations,
+            generations=args.generations, population_size=args.population_size, seed=seed,
+        )  # fmt: skip
         for method in methods:
             folder = args.out / f"seed{seed}" / method
             done = folder / "anytime" / "summary.json"

@@ -38,6 +38,7 @@ from infra.io import atomic_write_text
 from servobot.robustness.measure import physics_runs
 from servobot.robustness.ranking import Genome, agreement, noise_ceiling, seen
 
+PROG = "python -m servobot.robustness.floor"
 SEEN_WORLDS = ("station-seen",)
 """Physics worlds whose station block the rangefinders see (the envelope's block always seen)."""
 
@@ -120,12 +121,9 @@ def _markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(
-        prog="python -m servobot.robustness.floor",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+def _parser() -> argparse.ArgumentParser:
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = argparse.ArgumentParser(PROG, description=__doc__, formatter_class=fmt)
     p.add_argument("a", type=Path, help="a `servobot robustness` folder")
     p.add_argument("b", type=Path, help="the same runs under another --noise-seed")
     p.add_argument("--table", default="paper", help="gait table of the table side (paper|PATH)")
@@ -134,7 +132,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--realisations", type=int, default=4, help="single draws scored (4)")
     p.add_argument("--seed", type=int, default=0, help="seed of the envelope's draws (0)")
     p.add_argument("--out", type=Path, default=Path("runs/floor"))
-    a = p.parse_args(argv)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = _parser().parse_args(argv)
     try:
         envelope, table = load_envelope(a.envelope), load_table(a.table)
         physics, genomes, starts = physics_floor(a.a, a.b)
@@ -148,12 +150,13 @@ def main(argv: list[str] | None = None) -> int:
                       for w in physics},
         }  # fmt: skip
     except (InputError, ValueError, FileNotFoundError) as exc:
-        print(f"python -m servobot.robustness.floor: {exc}", file=sys.stderr)
+        print(f"{PROG}: {exc}", file=sys.stderr)
         return 2
+    text = _markdown(doc)
     a.out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(a.out / "floor.json", json.dumps(doc, indent=1))
-    atomic_write_text(a.out / "floor.md", _markdown(doc))
-    print(_markdown(doc))
+    for name, body in (("floor.json", json.dumps(doc, indent=1)), ("floor.md", text)):
+        atomic_write_text(a.out / name, body)
+    print(text)
     return 0
 
 
