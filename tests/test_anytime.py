@@ -342,8 +342,12 @@ def test_servobot_anytime_end_to_end(nav_file, tmp_path, capsys):
     base, run = tmp_path / "none", tmp_path / "model"
     args = ["anytime", "--navigation", str(nav_file), *TINY_CLI]
     assert servobot([*args, "--method", "none", "--out", str(base)]) == 0
-    code = servobot([*args, "--method", "model", "--out", str(run), "--baseline", str(base),
-                     "--envelope", "default"])  # fmt: skip
+    envelope = [*args, "--method", "model", "--out", str(run), "--baseline", str(base),
+                "--envelope", "default"]  # fmt: skip
+    # in an envelope coverage trains on 30 starts per generation: not the baseline's GA
+    assert servobot(envelope) == 2
+    assert "GASettings.starts_per_generation: 10 there, 30 here" in capsys.readouterr().err
+    code = servobot([*envelope, "--starts-per-generation", "10"])
     assert code == 0, capsys.readouterr().err
     assert "anytime (model): final bests on 2 fresh starts" in capsys.readouterr().out
     folder = run / "anytime"
