@@ -117,7 +117,8 @@ def add_ga_options(p: argparse.ArgumentParser, generations: str) -> None:
         (
             "--starts-per-generation",
             "training starts drawn anew each generation and shared by the population "
-            "(default: 40 for navigation, 10 for coverage and colony; GASettings)",
+            "(default: 40 for navigation; 10 for coverage, 30 in an envelope other than "
+            "none; 10 for the colony; GASettings)",
         ),
         ("--seed", "seed of every random draw (0)"),
     ):
