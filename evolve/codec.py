@@ -160,7 +160,11 @@ def format_gene(gene: np.ndarray) -> str:
 
 
 def format_chromosome(bits: np.ndarray) -> str:
-    """A (G, 30) chromosome as SPEC text: one grouped gene a line, newline-terminated."""
+    """A (G, 30) chromosome as SPEC text: one grouped gene a line, newline-terminated. A
+    team (R, G, 30), one chromosome per robot of a colony, is each chromosome after a
+    ``# robot r`` line (for reports; a chromosome file holds one)."""
+    if np.ndim(bits) == 3:
+        return "".join(f"# robot {r}\n" + format_chromosome(b) for r, b in enumerate(bits))
     arr = check_bits(bits)
     return "".join(format_gene(g) + "\n" for g in arr)
 

@@ -17,7 +17,9 @@ Layout under the run folder ``out``::
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import json
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,16 +29,18 @@ import numpy as np
 from evolve.codec import write_chromosome
 from evolve.envelope import NONE, Envelope
 from evolve.interpreter import END_NAMES
-from evolve.population import Stage, StageError, save_generations
+from evolve.population import Stage, StageError, save_generations, stage_seeds
 from evolve.settings import ColonySettings, GASettings, WorldSettings
 from evolve.stages import (
     StageOptions,
     StageRun,
     _check_navigation,
+    _kernel_threads,
     _provenance,
     _run_populations,
     _stage_folder,
     _write_figure9,
+    both_worlds,
     envelope_figure9,
     figure9_both,
     figure9_summary,
@@ -152,11 +156,16 @@ def _colony(
     from evolve import figures
 
     t0 = time.perf_counter()
-    results, test_starts = _run_populations(
-        stage, folder, doc, table=table, ga=ga, world=world, run=run
-    )
     gens = save_generations(ga)
-    fig9 = figure9_both(folder, stage, table, world, gens, ga.populations, test_starts, ga.seed)
+    if colony.sections == "team":
+        finals, fig9, test_starts = _evolve_teams(stage, folder, doc, table, ga, world, colony, run)
+    else:
+        results, test_starts = _run_populations(
+            stage, folder, doc, table=table, ga=ga, world=world, run=run
+        )
+        fig9 = figure9_both(folder, stage, table, world, gens, ga.populations, test_starts,
+                            ga.seed)  # fmt: skip
+        finals = np.stack([stage.genomes(res.best[None])[0] for res in results])
     inner = fig9[""][0]
     _write_figure9(folder, gens, fig9, stage.envelope)
     r = colony.robots
@@ -164,18 +173,11 @@ def _colony(
         folder / "figure9.png", gens, inner,
         title=f"Figure 9, a colony of {r}: colony inner squares of each population's best",
     )  # fmt: skip
-    bests = np.stack([stage.genomes(res.best[None])[0] for res in results])
-    final = final_test(bests, test_starts, table, world, colony)
+    final = final_test(finals, test_starts, table, world, colony)
     fig10 = []
     start = figure10_starts(world, colony)
-    for k, full in enumerate(bests):
-        extra = (
-            f"16 genes: coverage section (learned as a colony of {r}) + navigation (fixed); "
-            f"Figure 9 test {inner[k, -1]:.1f}% of the {world.inner_square_count} inner squares"
-        )
-        write_chromosome(
-            folder / f"best_pop{k}.txt", full, _provenance("colony", k, ga, table, extra)
-        )
+    for k, full in enumerate(finals):
+        _write_finalist(folder, k, full, ga, table, world, inner[k, -1])
         fig = figures.colony_figure10(
             folder / f"figure10_pop{k}.png", full, table=table, world=world, colony=colony,
             starts=start, title=f"population {k}",
@@ -197,6 +199,54 @@ def _colony(
     return write_summary(folder, summary, t0, run, doc, envelope_figure9(stage, fig9))
 
 
+def _evolve_teams(
+    stage: Stage, folder: Path, doc: dict[str, Any], table: GaitTable, ga: GASettings,
+    world: WorldSettings, colony: ColonySettings, run: StageRun,
+) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]], np.ndarray]:  # fmt: skip
+    """``ga.populations`` teams of ``colony.robots`` coevolved populations
+    (``evolve.coevolution``); returns (final teams (T, R, 16, 30), Figure 9 in both worlds,
+    test starts)."""
+    from evolve.coevolution import run_teams, team_figure9
+
+    test_seq, seeds = stage_seeds(ga.seed, stage.name, ga.populations)
+    threads = None if run.executor is None else _kernel_threads(run.executor)
+    results = run_teams(
+        stage, folder, seeds, robots=colony.robots, table=table, ga=ga, world=world,
+        settings_text=json.dumps(doc, sort_keys=True), resume=run.resume,
+        executor=run.executor, threads=threads, on_generation=run.on_generation,
+    )  # fmt: skip
+    test_starts = stage.starts(np.random.Generator(np.random.PCG64(test_seq)), ga.test_starts,
+                               world)  # fmt: skip
+    gens = save_generations(ga)
+    fig9 = {
+        prefix: team_figure9(folder, st, table, world, gens, ga.populations, test_starts, ga.seed)
+        for prefix, st in both_worlds(stage)
+    }
+    return np.stack([stage.genomes(res.team) for res in results]), fig9, test_starts
+
+
+def _write_finalist(
+    folder: Path, k: int, full: np.ndarray, ga: GASettings, table: GaitTable,
+    world: WorldSettings, inner: float,
+) -> None:  # fmt: skip
+    """``best_pop{k}.txt``, or a team's ``best_pop{k}_robot{r}.txt`` (``full``: (16, 30) or
+    (R, 16, 30))."""
+    test = f"Figure 9 test {inner:.1f}% of the {world.inner_square_count} inner squares"
+    if full.ndim == 2:
+        extra = f"16 genes: coverage section (learned as a colony) + navigation (fixed); {test}"
+        write_chromosome(
+            folder / f"best_pop{k}.txt", full, _provenance("colony", k, ga, table, extra)
+        )
+        return
+    for r, bits in enumerate(full):
+        extra = (
+            f"16 genes: robot {r}'s coverage section of a team of {len(full)} (coevolved) + "
+            f"navigation (fixed); the team's {test}"
+        )
+        write_chromosome(folder / f"best_pop{k}_robot{r}.txt", bits,
+                         _provenance("colony", k, ga, table, extra))  # fmt: skip
+
+
 def final_test(
     genomes: np.ndarray,
     test_starts: np.ndarray,
@@ -204,8 +254,9 @@ def final_test(
     world: WorldSettings,
     colony: ColonySettings,
 ) -> list[dict[str, Any]]:
-    """Each population's final best (rows of ``genomes``, 16 genes) as a colony from the
-    colony ``test_starts`` (T, R, 3), and alone from each start's robot-0 pose (T, 3).
+    """Each population's final best (rows of ``genomes``, 16 genes; or teams (K, R, 16, 30),
+    robot r carrying row r) as a colony from the colony ``test_starts`` (T, R, 3), and alone
+    (a team's robot 0) from each start's robot-0 pose (T, 3).
 
     Per population: colony and per-robot inner coverage (% of the inner squares), squares,
     docks per robot, station waits and blocked moves per run, colony steps, how the robots
@@ -216,7 +267,14 @@ def final_test(
 
     kw = dict(table=table.values, mode="coverage", start_power=world.start_power_v,
               settings=world)  # fmt: skip
-    ev = evaluate_colony(genomes, test_starts, colony=colony, **kw)
+    if genomes.ndim == 4:
+        evs = [evaluate_colony(team[:1], test_starts, colony=colony, partners=team, role=0, **kw)
+               for team in genomes]  # fmt: skip
+        ev = type(evs[0])(**{f.name: np.concatenate([getattr(e, f.name) for e in evs])
+                             for f in dataclasses.fields(evs[0])})  # fmt: skip
+        genomes = genomes[:, 0]
+    else:
+        ev = evaluate_colony(genomes, test_starts, colony=colony, **kw)
     lone = evaluate(genomes, np.ascontiguousarray(test_starts[:, 0]), **kw)
     pct = 100.0 / world.inner_square_count
     live = ev.live.sum(axis=2)

@@ -207,6 +207,19 @@ def colony_run_fitness(ev: ColonyEvaluation, colony: ColonySettings, max_steps: 
     return squares
 
 
+def _check_partners(partners: np.ndarray, bits: np.ndarray, robots: int, role: int) -> np.ndarray:
+    """``partners`` checked against the individuals' chromosomes and the colony's robots."""
+    arr = check_bits(partners, name="partners", population=True)
+    if arr.shape != (robots,) + bits.shape[1:]:
+        raise ValueError(
+            f"partners must hold one chromosome per robot, shaped {(robots,) + bits.shape[1:]} "
+            f"like the genomes, got {arr.shape}"
+        )
+    if not 0 <= role < robots:
+        raise ValueError(f"role must name a robot, 0 … {robots - 1}, got {role}")
+    return arr
+
+
 def _check_colony_starts(
     starts: np.ndarray, settings: WorldSettings, colony: ColonySettings
 ) -> np.ndarray:
@@ -242,11 +255,15 @@ def evaluate_colony(
     colony: ColonySettings = DEFAULT_COLONY,
     envelope: Envelope = NONE,
     envelope_key: tuple[int, ...] = (0, 0),
+    partners: np.ndarray | None = None,
+    role: int = 0,
 ) -> ColonyEvaluation:
     """Run every individual of ``genomes`` as a colony from every colony start (SPEC §7).
 
     ``starts``: (S, R, 3), R = ``colony.robots`` poses per run (inside the arena, centres at
-    least two disc radii apart). Every robot of a run carries the same chromosome; robot r
+    least two disc radii apart). Every robot of a run carries the same chromosome, or, with
+    ``partners`` (R, genes, 30), robot ``role`` carries the individual and robot j ≠ ``role``
+    chromosome ``partners[j]`` (a team of coevolved sections, ``evolve.coevolution``); robot r
     starts with ``colony.start_powers(start_power, settings.charged_power_v)[r]``
     (``start_power`` for every robot unless ``colony.start_power_spread``); ``max_steps``
     bounds each robot's gait steps (default as ``evaluate``). Other arguments as
@@ -263,6 +280,7 @@ def evaluate_colony(
     limit = -1 if colony.colony_step_limit is None else colony.colony_step_limit
     params = (colony.disc_radius, colony.min_distance, colony.charge_steps, limit,
               colony.blocking_code)  # fmt: skip
+    team = None if partners is None else _decoded(_check_partners(partners, bits, n_robots, role))
     st, pose, out_run = kernel.run_colony_flat(
         *_decoded(bits),
         start_arr,
@@ -272,6 +290,8 @@ def evaluate_colony(
         max_steps,
         mode == "navigation",
         params,
+        team,
+        role,
     )
     shape = (bits.shape[0], start_arr.shape[0])
     per_robot = st.reshape(shape + st.shape[1:])

@@ -471,7 +471,8 @@ def run_colony(
     max_steps: int | None = None,
     on_event: Callable[[ColonyEvent], None] | None = None,
 ) -> ColonyResult:
-    """Run chromosome ``bits`` on every robot of ``world`` (SPEC §7) until no robot is live.
+    """Run chromosome ``bits`` on every robot of ``world`` (SPEC §7) until no robot is live;
+    ``bits`` (R, genes, 30): robot i carries ``bits[i]`` (a team, ``evolve.coevolution``).
 
     One colony step: each live robot in index order runs its program to its next gait
     instruction and executes it with its checks (or takes one charging or backup step).
@@ -481,10 +482,16 @@ def run_colony(
     gives the charging time and the optional colony-step limit, and must have
     ``colony.robots == world.robots``. ``on_event`` receives every ``ColonyEvent``.
     """
-    arr, max_steps = _check_run(bits, mode, settings, max_steps)
     n = world.robots
     if colony.robots != n:
         raise ValueError(f"the world holds {n} robots but colony.robots = {colony.robots}")
+    team = np.asarray(bits)
+    if team.ndim == 3 and team.shape[0] != n:
+        raise ValueError(f"a team of {team.shape[0]} chromosomes for a colony of {n} robots")
+    each = team if team.ndim == 3 else [team]
+    checked = [_check_run(b, mode, settings, max_steps) for b in each]
+    max_steps = checked[0][1]
+    chromosomes = [c[0] for c in checked] * (n if len(checked) == 1 else 1)
     power = settings.start_power_v if start_power is None else float(start_power)
     powers = colony.start_powers(power, settings.charged_power_v)
     station = _Station()
@@ -496,7 +503,7 @@ def run_colony(
         return lambda e: on_event(ColonyEvent(i, clock[0], e))
 
     runs = [
-        _Run(arr, RobotView(world, i), mode, settings, powers[i], max_steps, emitter(i),
+        _Run(chromosomes[i], RobotView(world, i), mode, settings, powers[i], max_steps, emitter(i),
              index=i, station=station, charge_steps=colony.charge_steps)
         for i in range(n)
     ]  # fmt: skip

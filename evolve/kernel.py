@@ -445,7 +445,8 @@ def run_flat(loops, ops, arg, target, starts, draws, p, start_power, max_steps, 
 @njit(cache=True, inline="always")
 def _charge_step(i, loops, p, power, st):
     """Robot ``i`` charges for one colony step; returns the station's holder afterwards. Its
-    power is set when full (nothing reads it while it charges)."""
+    power is set when full (nothing reads it while it charges). ``loops`` (R, G): every
+    robot's loop counts."""
     st[i, S_COUNT] -= 1
     if st[i, S_COUNT] > 0:
         return i
@@ -461,7 +462,7 @@ def _after_charge(i, loops, p, st):
     st[i, S_COUNT] = int(p[P_BACKUP_N])
     st[i, S_G] = 0
     st[i, S_K] = 0
-    st[i, S_REM] = loops[0]
+    st[i, S_REM] = loops[i, 0]
     if st[i, S_COUNT] == 0:
         st[i, S_PHASE] = PHASE_PROGRAM
 
@@ -506,7 +507,7 @@ def _start(loops, power0, max_steps, pose, power, st, masks):
         pose[i, 2] = wrap360(pose[i, 2])
         power[i] = power0[i]
         st[i, :] = 0
-        st[i, S_REM] = loops[0]
+        st[i, S_REM] = loops[i, 0]
         st[i, S_END] = -1 if max_steps > 0 else END_STEP_LIMIT
         masks[i, 0] = 0
         masks[i, 1] = 0
@@ -514,11 +515,12 @@ def _start(loops, power0, max_steps, pose, power, st, masks):
 
 @njit(cache=True)
 def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, power, st, masks, out):
-    """Run one chromosome on every robot of a colony (SPEC §7) in place.
+    """Run a colony (SPEC §7) in place, robot i carrying the chromosome of row i of ``code``.
 
     One colony step: each live robot in index order takes a charging step, or a backup
     cycle, or runs its program to its next gait and takes it, each with its checks.
-    ``code`` = decoded (loops, ops, arg, target); ``colony`` = (disc radius, minimum centre
+    ``code`` = decoded (loops (R, G), ops, arg, target (R, G, 4)), one row per robot (the
+    same row R times for a colony of one chromosome); ``colony`` = (disc radius, minimum centre
     distance, charge steps, colony-step limit or −1, blocking code: ``BLOCK_SLIDE`` slides
     blocked moves, 0 cancels them). ``power0`` (R,): each robot's start power
     (``ColonySettings.start_powers``). ``pose`` (R, 3) holds the start poses
@@ -559,8 +561,8 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
             if phase == PHASE_PROGRAM:
                 seen_objects = -1  # as in run_one: nothing moves during the turn's branches
                 seen_lights = -1
-                while ops[g, k] != OP_GAIT:
-                    test = arg[g, k]
+                while ops[i, g, k] != OP_GAIT:
+                    test = arg[i, g, k]
                     positive, seen_objects, seen_lights = _branch_test(
                         test, seen_objects, seen_lights, x, y, h, pw, p, pose, i, radius,
                         reach[i], block)  # fmt: skip
@@ -569,14 +571,14 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
                         end = END_BRANCH_LIMIT
                         break
                     if positive:
-                        g = _branch_destination(g, test, target[g, k], loops.shape[0])
+                        g = _branch_destination(g, test, target[i, g, k], loops.shape[1])
                         k = 0
-                        rem = loops[g]
+                        rem = loops[i, g]
                     else:
                         g, k, rem, fresh = _next_pc(g, k, rem)
                         if fresh:
-                            rem = loops[g]
-                gait = arg[g, k]
+                            rem = loops[i, g]
+                gait = arg[i, g, k]
             if end < 0:
                 lo, hi, sq, inner = masks[i, 0], masks[i, 1], st[i, S_SQUARES], st[i, S_INNER]
                 x, y, h, pw, lo, hi, sq, inner, end, blocked = _walk(
@@ -611,7 +613,7 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
                 live -= 1
             elif phase == PHASE_PROGRAM:
                 g, k, rem, fresh = _next_pc(g, k, rem)
-                st[i, S_G], st[i, S_K], st[i, S_REM] = g, k, loops[g] if fresh else rem
+                st[i, S_G], st[i, S_K], st[i, S_REM] = g, k, loops[i, g] if fresh else rem
     for i in range(pose.shape[0]):
         if st[i, S_END] < 0:
             st[i, S_END] = END_STEP_LIMIT
@@ -619,13 +621,28 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     out[RUN_COLONY_STEPS] = rounds
 
 
+@njit(cache=True)
+def _robot_rows(own, partners, role):
+    """One code array of a colony run, a row per robot: ``own`` for every robot (``role`` <
+    0), or for robot ``role`` and row j of ``partners`` for robot j ≠ ``role``."""
+    out = np.empty((partners.shape[0],) + own.shape, dtype=own.dtype)
+    for j in range(partners.shape[0]):
+        if role < 0 or j == role:
+            out[j] = own
+        else:
+            out[j] = partners[j]
+    return out
+
+
 @njit(parallel=True, cache=True)
 def evaluate_colony_flat(
-    loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, colony,
-    st, pose, power, masks, out_run,
+    loops, ops, arg, target, team, role, starts, draws, p, start_power, max_steps, nav_run,
+    colony, st, pose, power, masks, out_run,
 ):  # fmt: skip
     """Run every (individual, colony start) pair: ``starts`` (S, R, 3); ``start_power`` (R,)
-    each robot's start power; ``draws`` the arrays
+    each robot's start power; ``team`` = decoded (loops, ops, arg, target) of R partner
+    chromosomes and ``role``: robot ``role`` carries the individual and the others their row
+    of ``team`` (``role`` < 0: every robot carries the individual); ``draws`` the arrays
     of ``evolve.variation.KernelDraws`` for S starts × R robots; state and outputs (P·S, R, …)
     and ``out_run`` (P·S, 3), row i·S + s for individual i from start s."""
     rows, reach, seen, keys, sigma, env = draws
@@ -634,21 +651,27 @@ def evaluate_colony_flat(
     for idx in prange(total):
         i, s = _individual_start(idx, n_starts)
         pose[idx] = starts[s]
+        code = (_robot_rows(loops[i], team[0], role), _robot_rows(ops[i], team[1], role),
+                _robot_rows(arg[i], team[2], role), _robot_rows(target[i], team[3], role))
         run_colony_one(
-            (loops[i], ops[i], arg[i], target[i]), nav_run,
-            (rows[s], reach[s], seen[s], keys[s], sigma, env), p, start_power, max_steps,
-            colony, pose[idx], power[idx], st[idx], masks[idx], out_run[idx],
+            code, nav_run, (rows[s], reach[s], seen[s], keys[s], sigma, env), p, start_power,
+            max_steps, colony, pose[idx], power[idx], st[idx], masks[idx], out_run[idx],
         )  # fmt: skip
 
 
 def run_colony_flat(
-    loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, colony
-):
+    loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, colony,
+    team=None, role=-1,
+):  # fmt: skip
     """Allocate state and outputs, run ``evaluate_colony_flat`` with dynamic chunks
-    (``start_power``: (R,) each robot's start power); returns
+    (``start_power``: (R,) each robot's start power; ``team``, ``role``: partners as there,
+    None = every robot carries the individual); returns
     (robot state (P·S, R, S_COLUMNS), final poses (P·S, R, 3), run outputs (P·S, 3))."""
     total = loops.shape[0] * starts.shape[0]
     n_robots = starts.shape[1]
+    if team is None:
+        team = tuple(np.zeros((n_robots, *a.shape[1:]), a.dtype) for a in (loops, ops, arg, target))
+        role = -1  # the zeros are never read
     st = np.zeros((total, n_robots, S_COLUMNS), dtype=np.int64)
     pose = np.zeros((total, n_robots, 3), dtype=np.float64)
     power = np.zeros((total, n_robots), dtype=np.float64)
@@ -658,8 +681,9 @@ def run_colony_flat(
     old = numba.set_parallel_chunksize(CHUNK)
     try:
         evaluate_colony_flat(
-            loops, ops, arg, target, starts, tuple(draws), p, power0, int(max_steps),
-            bool(nav_run), np.asarray(colony, dtype=np.float64), st, pose, power, masks, out_run,
+            loops, ops, arg, target, tuple(team), int(role), starts, tuple(draws), p, power0,
+            int(max_steps), bool(nav_run), np.asarray(colony, dtype=np.float64), st, pose,
+            power, masks, out_run,
         )  # fmt: skip
     finally:
         numba.set_parallel_chunksize(old)

@@ -136,6 +136,27 @@ def evaluate_sections(
     return run_fit[inverse], ev, first, inverse
 
 
+def training_generation(
+    sections: np.ndarray, starts: np.ndarray, stage: Stage, table: GaitTable,
+    world: WorldSettings, ga: GASettings, generation: int,
+) -> Generation:  # fmt: skip
+    """Evaluate generation ``generation`` of a population from its training ``starts``: in
+    the world of §3 during the envelope's warm-up, else once per training draw of
+    ``stage.envelope`` (``Envelope.training_keys``), a run's fitness the mean (or ``min``,
+    ``draw_fitness``) over its draws."""
+    if generation < stage.envelope.warmup_generations(ga.generations):
+        stage = dataclasses.replace(stage, envelope=NONE)
+    fits, docked = [], []
+    for key in stage.envelope.training_keys(ga.seed, generation):
+        run_fit, ev, first, inverse = evaluate_sections(sections, starts, stage, table, world, key)
+        fits.append(run_fit)
+        docks = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == END_DOCKED)
+        docked.append(docks[inverse])
+    combine = np.min if stage.envelope.draw_fitness == "min" else np.mean
+    run_fit = fits[0] if len(fits) == 1 else combine(fits, axis=0)
+    return Generation(starts, run_fit.mean(axis=1), float(np.mean(docked)), len(first))
+
+
 class SpawnedSeeds(Sequence):
     """Children ``first``, ``first + 1``, ... of a SeedSequence, made when asked for: equal to
     ``root.spawn(...)``'s but costing nothing up front (a billion populations do not hang)."""
@@ -307,21 +328,8 @@ class PopulationRun:
             starts = self.stage.starts(self.rng, n, self.world)
         else:
             starts = draw(self.rng, n, self.world, self.generation)
-        stage = self.stage
-        if self.generation < stage.envelope.warmup_generations(self.ga.generations):
-            stage = dataclasses.replace(stage, envelope=NONE)
-        fits, docked = [], []
-        for key in stage.envelope.training_keys(self.ga.seed, self.generation):
-            run_fit, ev, first, inverse = evaluate_sections(
-                self.pop, starts, stage, self.table, self.world, key
-            )
-            fits.append(run_fit)
-            docks = (np.asarray(ev.docks) > 0) | (np.asarray(ev.end) == END_DOCKED)
-            docked.append(docks[inverse])
-        combine = np.min if stage.envelope.draw_fitness == "min" else np.mean
-        run_fit = fits[0] if len(fits) == 1 else combine(fits, axis=0)
-        self._pending = Generation(
-            starts, run_fit.mean(axis=1), float(np.mean(docked)), len(first)
+        self._pending = training_generation(
+            self.pop, starts, self.stage, self.table, self.world, self.ga, self.generation
         )
         return self._pending
 
@@ -436,6 +444,7 @@ def write_history(path: Path, hist: np.ndarray) -> None:
 
 
 __all__ = [
+    "training_generation",
     "CHECKPOINT_EVERY",
     "HISTORY_COLUMNS",
     "Generation",

@@ -31,6 +31,10 @@ BLOCKING_RULES = ("cancel", "slide")
 COLONY_FITNESSES = ("squares", "alive", "per_step", "docks")
 """``ColonySettings.fitness`` values: what one colony run scores in the colony stage."""
 
+COLONY_SECTIONS = ("shared", "team")
+"""``ColonySettings.sections`` values: one coverage section for every robot, or one per robot
+evolved by cooperative coevolution."""
+
 
 @dataclass(frozen=True)
 class WorldSettings:
@@ -246,6 +250,12 @@ class ColonySettings:
     (default): every robot starts on P0, as SPEC §7 reads; 0.5 → 4.0, 4.5, 5.0 V, so the
     robots do not all reach the low-power threshold at once. Only the start differs: a
     charge still ends at ``charged_power_v``."""
+    sections: str = "shared"
+    """What the colony stage evolves [chosen; issue 17, docs/colony.md "A team of sections:
+    cooperative coevolution"]: ``"shared"`` (default, SPEC §7), one coverage section that
+    every robot carries; ``"team"``, one section per robot, robot r's from its own population
+    (``evolve.coevolution``: each individual is scored as robot r of a colony whose other
+    robots carry the other populations' current bests). A team costs R populations' runs."""
 
     def __post_init__(self) -> None:
         if self.fitness not in COLONY_FITNESSES:
@@ -259,6 +269,9 @@ class ColonySettings:
         cap = self.dock_cap
         if not (isinstance(cap, numbers.Integral) and not isinstance(cap, bool) and cap >= 1):
             raise SettingsError(f"dock_cap must be an integer ≥ 1 (docks per robot), got {cap!r}")
+        if self.sections not in COLONY_SECTIONS:
+            allowed = ", ".join(repr(v) for v in COLONY_SECTIONS)
+            raise SettingsError(f"sections must be one of {allowed}, got {self.sections!r}")
         if self.blocking not in BLOCKING_RULES:
             allowed = ", ".join(repr(b) for b in BLOCKING_RULES)
             raise SettingsError(f"blocking must be one of {allowed}, got {self.blocking!r}")
@@ -303,11 +316,11 @@ class ColonySettings:
 
     def to_dict(self) -> dict[str, Any]:
         """Every field, but ``blocking`` only when it is not ``"cancel"``, ``fitness`` only when
-        it is not ``"squares"``, ``alive_weight`` only with ``fitness = "alive"``,
-        ``dock_weight``, ``dock_cap`` only with ``fitness = "docks"`` (the fitnesses that read
-        them) and ``start_power_spread`` only when it is not 0: the record of a colony made
-        before these fields existed (``settings.json``, checked on resume) is unchanged, so
-        such a run folder still resumes."""
+        it is not ``"squares"``, ``sections`` only when it is not ``"shared"``, ``alive_weight``
+        only with ``fitness = "alive"``, ``dock_weight``, ``dock_cap`` only with ``fitness =
+        "docks"`` (the fitnesses that read them) and ``start_power_spread`` only when it is not
+        0: the record of a colony made before these fields existed (``settings.json``, checked
+        on resume) is unchanged, so such a run folder still resumes."""
         d = dataclasses.asdict(self)
         if self.blocking == "cancel":
             del d["blocking"]
@@ -319,6 +332,8 @@ class ColonySettings:
             del d["dock_weight"], d["dock_cap"]
         if self.start_power_spread == 0.0:
             del d["start_power_spread"]
+        if self.sections == "shared":
+            del d["sections"]
         return d
 
 
@@ -481,6 +496,7 @@ def settings_json(*objs: Any) -> str:
 __all__ = [
     "BLOCKING_RULES",
     "COLONY_FITNESSES",
+    "COLONY_SECTIONS",
     "SettingsError",
     "ColonySettings",
     "GASettings",

@@ -36,18 +36,25 @@ def _robot_values(res, field):
 
 def assert_colony_kernel_equals_interpreter(
     genomes, starts, *, mode="coverage", table=PAPER_TABLE, world=WORLD, colony=COLONY,
-    envelope=NONE, envelope_key=(0, 0), **kw,
+    envelope=NONE, envelope_key=(0, 0), partners=None, role=0, **kw,
 ):  # fmt: skip
-    """Compare every (individual, colony start) run, robot by robot, in ``envelope``; returns
+    """Compare every (individual, colony start) run, robot by robot, in ``envelope`` (with
+    ``partners``: robot ``role`` carries the individual, the others their partner); returns
     the evaluation."""
     env = dict(envelope=envelope, envelope_key=envelope_key)
+    team = {} if partners is None else dict(partners=partners, role=role)
     ev = evaluate_colony(
-        genomes, starts, table=table, mode=mode, settings=world, colony=colony, **env, **kw
-    )
+        genomes, starts, table=table, mode=mode, settings=world, colony=colony, **env, **team,
+        **kw,
+    )  # fmt: skip
     for i in range(genomes.shape[0]):
+        bits = genomes[i]
+        if partners is not None:
+            bits = partners.copy()
+            bits[role] = genomes[i]
         for s in range(starts.shape[0]):
             res = run_colony(
-                genomes[i], TableColony(table, starts[s], world, colony, start=s, **env),
+                bits, TableColony(table, starts[s], world, colony, start=s, **env),
                 mode=mode, settings=world, colony=colony, **kw,
             )  # fmt: skip
             got = (ev.squares[i, s], ev.inner_squares[i, s], ev.colony_steps[i, s])

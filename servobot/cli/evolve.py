@@ -12,13 +12,14 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
     servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide
                                 --colony-fitness squares|alive|per_step|docks
                                 --alive-weight 8 --dock-weight 4 --dock-cap 2
-                                --start-power-spread 0]
+                                --start-power-spread 0 --sections shared|team]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
 R, ``--blocking`` its table-world blocking rule, ``--colony-fitness`` what a colony run
 scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`` (with
-``docks``) its terms, ``--start-power-spread`` its robots' staggered start powers;
+``docks``) its terms, ``--start-power-spread`` its robots' staggered start powers,
+``--sections`` one section for every robot or a coevolved team of them;
 ``--nav-start-power``: ``NavigationSettings.start_power_v``).
 ``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
 ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the navigation section,
@@ -46,6 +47,7 @@ from evolve.envelope import NONE
 from evolve.settings import (
     BLOCKING_RULES,
     COLONY_FITNESSES,
+    COLONY_SECTIONS,
     GASettings,
     WorldSettings,
     coverage_ga_settings,
@@ -124,6 +126,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="colony only: robot i starts with 4.0 + i × V volts, capped at the charged 5.0 V "
         "(0, default: every robot on 4.0 V; 0.5: 4.0, 4.5, 5.0 V); "
         "ColonySettings.start_power_spread, docs/colony.md",
+    )
+    p.add_argument(
+        "--sections",
+        choices=COLONY_SECTIONS,
+        default=None,
+        help="colony only: every robot carries one evolved coverage section (shared, default; "
+        "SPEC §7) or each its own, evolved by cooperative coevolution: a team of R "
+        "populations per population, R × the runs (team); ColonySettings.sections, "
+        "docs/colony.md",
     )
     p.add_argument(
         "--colony-fitness",
@@ -310,6 +321,8 @@ def _colony(args: argparse.Namespace) -> Any:
     kw: dict[str, Any] = {} if args.blocking is None else {"blocking": args.blocking}
     if args.colony_fitness is not None:
         kw["fitness"] = args.colony_fitness
+    if args.sections is not None:
+        kw["sections"] = args.sections
     for flag, field, fitness in FITNESS_TERMS:
         value = getattr(args, field)
         if value is None:
@@ -352,6 +365,8 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
         raise CliError("--nav-start-power is an option of the navigation stage")
     if args.colony_fitness is not None and args.stage != "colony":
         raise CliError("--colony-fitness is an option of the colony stage")
+    if args.sections is not None and args.stage != "colony":
+        raise CliError("--sections is an option of the colony stage")
     colony = _colony(args)
     ga = ga_settings(args)
     table = load_table(args.table)

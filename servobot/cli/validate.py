@@ -73,7 +73,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "chromosome",
         type=Path,
-        help="chromosome text file: 16 genes, or an 8-gene navigation section (navigation mode)",
+        nargs="+",
+        help="chromosome text file: 16 genes, or an 8-gene navigation section (navigation "
+        "mode); with --robots R, R files make a team, robot r carrying file r (e.g. "
+        "colony/best_pop0_robot{0,1,2}.txt of 'servobot evolve colony --sections team')",
     )
     p.add_argument(
         "--starts",
@@ -241,11 +244,20 @@ def prepare(
     count = DEFAULT_STARTS if args.starts is None else args.starts
     n = len(args.start) // (colony.robots if colony else 1) if args.start else count
     _check_options(args, max(n, 1))
+    files = args.chromosome
+    robots = colony.robots if colony else 1
+    if len(files) not in (1, robots):
+        also = f" or {robots}, one per robot (a team)" if colony else " (a team needs --robots)"
+        raise InputError(f"chromosome: give 1 file{also}, got {len(files)}")
     try:
-        bits = check_chromosome(read_chromosome(args.chromosome), sections=colony is None)
+        read = [read_chromosome(f) for f in files]
+        bits = check_chromosome(read[0] if len(read) == 1 else np.stack(read),
+                                sections=colony is None, robots=robots)  # fmt: skip
     except (ChromosomeError, ValidationError) as exc:
         raise InputError(f"chromosome: {exc}") from exc
-    section = len(bits) == SECTION_GENES
+    except ValueError as exc:  # np.stack: files of different lengths
+        raise InputError(f"chromosome: a team needs 16-gene files ({exc})") from exc
+    section = bits.ndim == 2 and len(bits) == SECTION_GENES
     if args.poses is not None and (not section or args.start):
         raise InputError("--poses: only for an 8-gene navigation section, and not with --start")
     rng = np.random.default_rng(args.seed)
@@ -324,7 +336,8 @@ def _run(args: argparse.Namespace, command: str) -> int:
             max_steps=args.steps,
             seed=args.seed,
             on_run=on_run,
-            meta={"chromosome_file": str(args.chromosome), "seed": args.seed, "command": command},
+            meta={"chromosome_file": ", ".join(map(str, args.chromosome)), "seed": args.seed,
+                  "command": command},
             force=args.force,
             **kwargs,
         )

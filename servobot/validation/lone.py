@@ -190,9 +190,17 @@ def sample_poses(
     return poses, powers
 
 
-def check_chromosome(bits: Any, *, sections: bool = False) -> np.ndarray:
+def check_chromosome(bits: Any, *, sections: bool = False, robots: int | None = None) -> np.ndarray:
     """A (16, 30) chromosome as uint8 — or, with ``sections``, an (8, 30) navigation section
-    too — else ``ValidationError``."""
+    too, or with ``robots`` R a team (R, 16, 30), robot r carrying row r — else
+    ``ValidationError``."""
+    if robots is not None and np.ndim(bits) == 3:
+        if len(bits) != robots:
+            raise ValidationError(
+                f"a team of {len(bits)} chromosomes for a colony of {robots}: give one "
+                "chromosome, or one per robot"
+            )
+        return np.stack([check_chromosome(b) for b in bits])
     try:
         arr = check_bits(bits)
     except ValueError as exc:
@@ -211,7 +219,7 @@ def check_chromosome(bits: Any, *, sections: bool = False) -> np.ndarray:
 def mode_of(bits: np.ndarray) -> str:
     """The mode a checked controller is validated in: ``NAVIGATION_MODE`` for an 8-gene
     section, else ``MODE``."""
-    return NAVIGATION_MODE if len(bits) == SECTION_GENES else MODE
+    return NAVIGATION_MODE if np.ndim(bits) == 2 and len(bits) == SECTION_GENES else MODE
 
 
 def _find_sha(meta: Any) -> str | None:
@@ -584,7 +592,8 @@ def plan_validation(
     kind: Kind = LONE,
 ) -> Plan:
     """Check a validation of ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the
-    table and physics, and make its jobs (``validate`` runs it; ``execute`` runs plans).
+    table and physics, and make its jobs (``validate`` runs it; ``execute`` runs plans). A
+    colony's ``bits`` may be a team (R, 16, 30): robot r carries row r.
 
     ``bits`` may also be an (8, 30) navigation section: it then runs in navigation mode
     (SPEC §6: from gene 0 until it docks, ``world.navigation_steps`` steps by default), and
@@ -606,7 +615,7 @@ def plan_validation(
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
     colony = kind.colony
-    arr = check_chromosome(bits, sections=colony is None)
+    arr = check_chromosome(bits, sections=colony is None, robots=colony and colony.robots)
     mode = mode_of(arr)
     values = validate_table(getattr(table, "values", table))
     poses = kind.check_starts(starts, world, arena)
