@@ -621,28 +621,14 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     out[RUN_COLONY_STEPS] = rounds
 
 
-@njit(cache=True)
-def _robot_rows(own, partners, role):
-    """One code array of a colony run, a row per robot: ``own`` for every robot (``role`` <
-    0), or for robot ``role`` and row j of ``partners`` for robot j ≠ ``role``."""
-    out = np.empty((partners.shape[0],) + own.shape, dtype=own.dtype)
-    for j in range(partners.shape[0]):
-        if role < 0 or j == role:
-            out[j] = own
-        else:
-            out[j] = partners[j]
-    return out
-
-
 @njit(parallel=True, cache=True)
 def evaluate_colony_flat(
-    loops, ops, arg, target, team, role, starts, draws, p, start_power, max_steps, nav_run,
-    colony, st, pose, power, masks, out_run,
+    loops, ops, arg, target, starts, draws, p, start_power, max_steps, nav_run, colony,
+    st, pose, power, masks, out_run,
 ):  # fmt: skip
-    """Run every (individual, colony start) pair: ``starts`` (S, R, 3); ``start_power`` (R,)
-    each robot's start power; ``team`` = decoded (loops, ops, arg, target) of R partner
-    chromosomes and ``role``: robot ``role`` carries the individual and the others their row
-    of ``team`` (``role`` < 0: every robot carries the individual); ``draws`` the arrays
+    """Run every (individual, colony start) pair: ``loops`` (P, R, G), ``ops``, ``arg``,
+    ``target`` (P, R, G, 4): individual i's colony code, a row per robot (``robot_code``);
+    ``starts`` (S, R, 3); ``start_power`` (R,) each robot's start power; ``draws`` the arrays
     of ``evolve.variation.KernelDraws`` for S starts × R robots; state and outputs (P·S, R, …)
     and ``out_run`` (P·S, 3), row i·S + s for individual i from start s."""
     rows, reach, seen, keys, sigma, env = draws
@@ -651,12 +637,27 @@ def evaluate_colony_flat(
     for idx in prange(total):
         i, s = _individual_start(idx, n_starts)
         pose[idx] = starts[s]
-        code = (_robot_rows(loops[i], team[0], role), _robot_rows(ops[i], team[1], role),
-                _robot_rows(arg[i], team[2], role), _robot_rows(target[i], team[3], role))
         run_colony_one(
-            code, nav_run, (rows[s], reach[s], seen[s], keys[s], sigma, env), p, start_power,
-            max_steps, colony, pose[idx], power[idx], st[idx], masks[idx], out_run[idx],
+            (loops[i], ops[i], arg[i], target[i]), nav_run,
+            (rows[s], reach[s], seen[s], keys[s], sigma, env), p, start_power, max_steps,
+            colony, pose[idx], power[idx], st[idx], masks[idx], out_run[idx],
         )  # fmt: skip
+
+
+def robot_code(code, robots, team=None, role=-1):
+    """Each individual's colony code, a row per robot: the decoded (loops (P, G), ops, arg,
+    target (P, G, 4)) of P individuals as (P, R, …) arrays, every robot carrying its
+    individual, or with ``team`` (the decoded code of R partners) robot ``role`` carrying it
+    and robot j ≠ ``role`` row j of ``team``."""
+    out = []
+    for k, own in enumerate(code):
+        if team is None:
+            rows = np.repeat(own[:, None], robots, axis=1)
+        else:
+            rows = np.repeat(np.asarray(team[k])[None], own.shape[0], axis=0)
+            rows[:, role] = own
+        out.append(np.ascontiguousarray(rows))
+    return tuple(out)
 
 
 def run_colony_flat(
@@ -664,14 +665,12 @@ def run_colony_flat(
     team=None, role=-1,
 ):  # fmt: skip
     """Allocate state and outputs, run ``evaluate_colony_flat`` with dynamic chunks
-    (``start_power``: (R,) each robot's start power; ``team``, ``role``: partners as there,
-    None = every robot carries the individual); returns
+    (``start_power``: (R,) each robot's start power; ``team``, ``role``: partners as in
+    ``robot_code``, None = every robot carries the individual); returns
     (robot state (P·S, R, S_COLUMNS), final poses (P·S, R, 3), run outputs (P·S, 3))."""
     total = loops.shape[0] * starts.shape[0]
     n_robots = starts.shape[1]
-    if team is None:
-        team = tuple(np.zeros((n_robots, *a.shape[1:]), a.dtype) for a in (loops, ops, arg, target))
-        role = -1  # the zeros are never read
+    code = robot_code((loops, ops, arg, target), n_robots, team, role)
     st = np.zeros((total, n_robots, S_COLUMNS), dtype=np.int64)
     pose = np.zeros((total, n_robots, 3), dtype=np.float64)
     power = np.zeros((total, n_robots), dtype=np.float64)
@@ -681,9 +680,8 @@ def run_colony_flat(
     old = numba.set_parallel_chunksize(CHUNK)
     try:
         evaluate_colony_flat(
-            loops, ops, arg, target, tuple(team), int(role), starts, tuple(draws), p, power0,
-            int(max_steps), bool(nav_run), np.asarray(colony, dtype=np.float64), st, pose,
-            power, masks, out_run,
+            *code, starts, tuple(draws), p, power0, int(max_steps), bool(nav_run),
+            np.asarray(colony, dtype=np.float64), st, pose, power, masks, out_run,
         )  # fmt: skip
     finally:
         numba.set_parallel_chunksize(old)
@@ -696,6 +694,7 @@ __all__ = [
     "evaluate_flat",
     "run_colony_flat",
     "run_colony_one",
+    "robot_code",
     "run_flat",
     "run_one",
 ]
