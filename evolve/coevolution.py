@@ -50,10 +50,12 @@ from evolve.population import (
     CHECKPOINT_EVERY,
     HISTORY_COLUMNS,
     OnGeneration,
+    PopulationJob,
     SpawnedSeeds,
     Stage,
     StageError,
     generation_record,
+    run_population_job,
     save_generations,
     training_generation,
     write_history,
@@ -268,32 +270,6 @@ def evolve_team(
     return run.result
 
 
-@dataclass(frozen=True)
-class TeamJob:
-    """One team's whole evolution as a run of an executor (picklable plain data)."""
-
-    t: int
-    stage: Stage
-    folder: Path
-    kwargs: dict[str, Any]
-    threads: int | None = None
-    """Threads of the numba kernel while this team evolves (None = as they are)."""
-
-
-def run_team_job(job: TeamJob) -> TeamResult:
-    """Evolve one team where an executor runs it."""
-    if job.threads is None:
-        return evolve_team(job.t, job.stage, job.folder, **job.kwargs)
-    import numba
-
-    before = numba.get_num_threads()
-    numba.set_num_threads(min(job.threads, numba.config.NUMBA_NUM_THREADS))
-    try:
-        return evolve_team(job.t, job.stage, job.folder, **job.kwargs)
-    finally:
-        numba.set_num_threads(before)
-
-
 def run_teams(
     stage: Stage, folder: Path, seeds: Any, *, robots: int, table: GaitTable, ga: GASettings,
     world: WorldSettings, settings_text: str, resume: bool,
@@ -312,9 +288,10 @@ def run_teams(
             evolve_team(t, stage, folder, on_generation=on_generation, **kwargs[t])
             for t in range(ga.populations)
         ]
-    jobs = [TeamJob(t, stage, folder, kwargs[t], threads) for t in range(ga.populations)]
+    jobs = [PopulationJob(t, stage, folder, kwargs[t], threads, evolve_team)
+            for t in range(ga.populations)]  # fmt: skip
     outcomes: list[Any] = [None] * len(jobs)
-    with contextlib.closing(executor.imap(run_team_job, jobs)) as finished:
+    with contextlib.closing(executor.imap(run_population_job, jobs)) as finished:
         for t, outcome in finished:
             outcomes[t] = outcome
             if on_generation is not None and not isinstance(outcome, Failed):
@@ -349,13 +326,11 @@ def team_figure9(
 
 
 __all__ = [
-    "TeamJob",
     "TeamResult",
     "TeamRun",
     "evaluate_team",
     "evolve_team",
     "role_stage",
-    "run_team_job",
     "run_teams",
     "team_figure9",
 ]

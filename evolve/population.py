@@ -417,18 +417,22 @@ class PopulationJob:
     """``PopulationRun`` keyword arguments (seed sequence, table, settings, resume)."""
     threads: int | None = None
     """Threads of the numba kernel while this population evolves (None = as they are)."""
+    evolve: Callable[..., Any] = evolve_population
+    """What evolves it: ``evolve_population``, or ``evolve.coevolution.evolve_team`` for a
+    team of populations (then ``k`` is the team)."""
 
 
-def run_population_job(job: PopulationJob) -> PopulationResult:
-    """Evolve one population where an executor runs it (no progress callback crosses)."""
+def run_population_job(job: PopulationJob) -> Any:
+    """Evolve one population (or team) where an executor runs it (no progress callback
+    crosses)."""
     if job.threads is None:
-        return evolve_population(job.k, job.stage, job.folder, **job.kwargs)
+        return job.evolve(job.k, job.stage, job.folder, **job.kwargs)
     import numba
 
     before = numba.get_num_threads()
     numba.set_num_threads(min(job.threads, numba.config.NUMBA_NUM_THREADS))
     try:
-        return evolve_population(job.k, job.stage, job.folder, **job.kwargs)
+        return job.evolve(job.k, job.stage, job.folder, **job.kwargs)
     finally:
         numba.set_num_threads(before)
 
