@@ -35,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
+import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -104,7 +105,9 @@ def evaluate_team(
 
 class TeamRun:
     """Team ``t`` of ``robots`` populations of ``stage`` in ``folder``: resumes from its
-    checkpoint, then ``step()`` one generation at a time until ``finished``."""
+    checkpoint, then ``step()`` one generation at a time until ``finished``. A fresh team
+    starts from random populations, or with ``initial`` (P, 8, 30) every population a copy of
+    it and its index 0 every robot's partner."""
 
     def __init__(
         self,
@@ -119,6 +122,7 @@ class TeamRun:
         world: WorldSettings,
         settings_text: str,
         resume: bool,
+        initial: np.ndarray | None = None,
     ) -> None:
         self.t, self.stage, self.folder, self.robots = t, stage, Path(folder), robots
         self.table, self.ga, self.world, self.settings_text = table, ga, world, settings_text
@@ -135,6 +139,9 @@ class TeamRun:
             self._load_final()
         elif resume and self.ckpt.exists():
             self._load_checkpoint()
+        elif initial is not None:  # every population a copy of it, its index 0 the partner
+            self.pops = [np.array(initial, dtype=np.uint8) for _ in self.rngs]
+            self.partners = np.stack([pop[0] for pop in self.pops])
         else:
             size = ga.population_size
             self.pops = [gaops.random_sections(rng, size, SECTION_GENES) for rng in self.rngs]
@@ -274,13 +281,15 @@ def run_teams(
     stage: Stage, folder: Path, seeds: Any, *, robots: int, table: GaitTable, ga: GASettings,
     world: WorldSettings, settings_text: str, resume: bool,
     executor: Executor | None = None, threads: int | None = None,
-    on_generation: OnGeneration | None = None,
+    on_generation: OnGeneration | None = None, initial: np.ndarray | None = None,
 ) -> list[TeamResult]:  # fmt: skip
-    """Evolve ``ga.populations`` teams (team t from ``seeds[t]``), in this process one after
-    another or as runs of ``executor``; their results in order."""
+    """Evolve ``ga.populations`` teams (team t from ``seeds[t]``, and from ``initial[t]`` if
+    given), in this process one after another or as runs of ``executor``; their results in
+    order."""
     kwargs = [
         dict(robots=robots, seed_seq=seeds[t], table=table, ga=ga, world=world,
-             settings_text=settings_text, resume=resume)
+             settings_text=settings_text, resume=resume,
+             initial=None if initial is None else initial[t])
         for t in range(ga.populations)
     ]  # fmt: skip
     if executor is None:
@@ -302,6 +311,51 @@ def run_teams(
         return values_or_raise(outcomes, [f"team {t}" for t in range(len(jobs))])
     except BatchError as exc:
         raise StageError(f"{exc}; the checkpoints are kept, rerun with --resume") from exc
+
+
+def shared_populations(run: Path, ga: GASettings) -> np.ndarray:
+    """The final populations (T, P, 8, 30) of a finished shared colony run folder ``run``
+    (``run/colony/checkpoints/pop{t}_final.npz``, t < ``ga.populations``), each with its best
+    (by final fitness) at index 0: where ``--team-from`` starts a team stage. ``StageError``
+    naming what is missing or of the wrong size."""
+    out = []
+    for t in range(ga.populations):
+        path = Path(run) / "colony" / "checkpoints" / f"pop{t}_final.npz"
+        if not path.exists():
+            raise StageError(
+                f"{path}: no such file; --team-from needs a finished shared colony run "
+                f"('servobot evolve colony', --sections shared) of {ga.populations} populations"
+            )
+        data = read_npz(path, "final population file", ("population", "fitness"),
+                        error=StageError)  # fmt: skip
+        size = ga.population_size
+        if len(data["population"]) != size:
+            raise StageError(f"{path}: a population of {len(data['population'])}, but this team "
+                             f"stage's populations hold {size} (--population-size)")  # fmt: skip
+        pop = check_array(data, "population", (size, SECTION_GENES, GENE_BITS), path, bits=True,
+                          error=StageError)  # fmt: skip
+        fit = check_array(data, "fitness", (size,), path, error=StageError)
+        pop = pop.astype(np.uint8)
+        best = int(np.argmax(fit))
+        pop[[0, best]] = pop[[best, 0]]
+        out.append(pop)
+    return np.stack(out)
+
+
+def check_team_from(
+    team_from: np.ndarray, colony: Any, ga: GASettings
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """``team_from`` checked (team sections, (T, P, 8, 30) bits) and its ``settings.json``
+    entry: ``{"team_from_sha256": ...}``; ``StageError`` naming the problem."""
+    if colony.sections != "team":
+        raise StageError("team_from: only for a team of sections (ColonySettings.sections 'team')")
+    arr = np.asarray(team_from)
+    want = (ga.populations, ga.population_size, SECTION_GENES, GENE_BITS)
+    if arr.shape != want or not np.isin(arr, (0, 1)).all():
+        raise StageError(f"team_from must be {want} bits (teams × population × genes × bits), "
+                         f"got {arr.shape}")  # fmt: skip
+    arr = np.ascontiguousarray(arr, dtype=np.uint8)
+    return arr, {"team_from_sha256": hashlib.sha256(arr.tobytes()).hexdigest()}
 
 
 def team_figure9(
@@ -330,7 +384,9 @@ __all__ = [
     "TeamRun",
     "evaluate_team",
     "evolve_team",
+    "check_team_from",
     "role_stage",
     "run_teams",
+    "shared_populations",
     "team_figure9",
 ]

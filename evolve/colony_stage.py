@@ -124,6 +124,7 @@ def run_colony_stage(
     ga: GASettings = DEFAULT_GA,
     world: WorldSettings = DEFAULT_WORLD,
     colony: ColonySettings = DEFAULT_COLONY,
+    team_from: np.ndarray | None = None,
     **options: Unpack[StageOptions],
 ) -> dict[str, Any]:
     """Colony stage (SPEC §7) into ``out/colony``; returns the summary (also
@@ -141,24 +142,36 @@ def run_colony_stage(
     ``envelope`` (SPEC §9): the populations evolve in it; Figure 9 is also measured in it on
     the same colony test starts, as the coverage stage's (``envelope_figure9_*``,
     ``envelope_final_*``, ``envelope``); ``final_test`` and Figure 10 stay in the world of §3.
+
+    ``team_from`` (``colony.sections = "team"`` only): (T, P, 8, 30) populations, team t's
+    every population starting as a copy of row t (index 0 its partners; e.g. a shared run's
+    final populations, ``evolve.coevolution.shared_populations``), recorded in
+    ``settings.json`` by its SHA-256; None: random populations.
     """
     folder = Path(out) / "colony"
     run = StageRun(**options)
     stage = colony_stage(world, colony, navigation, run.envelope)
-    with _stage_folder(stage, folder, table, ga, world, run.resume, run.force) as doc:
-        return _colony(stage, folder, doc, table, ga, world, colony, run)
+    extra = None
+    if team_from is not None:
+        from evolve.coevolution import check_team_from
+
+        team_from, extra = check_team_from(team_from, colony, ga)
+    with _stage_folder(stage, folder, table, ga, world, run.resume, run.force, extra) as doc:
+        return _colony(stage, folder, doc, table, ga, world, colony, run, team_from)
 
 
 def _colony(
     stage: Stage, folder: Path, doc: dict[str, Any], table: GaitTable, ga: GASettings,
     world: WorldSettings, colony: ColonySettings, run: StageRun,
+    team_from: np.ndarray | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     from evolve import figures
 
     t0 = time.perf_counter()
     gens = save_generations(ga)
     if colony.sections == "team":
-        finals, fig9, test_starts = _evolve_teams(stage, folder, doc, table, ga, world, colony, run)
+        finals, fig9, test_starts = _evolve_teams(stage, folder, doc, table, ga, world, colony,
+                                                  run, team_from)  # fmt: skip
     else:
         results, test_starts = _run_populations(
             stage, folder, doc, table=table, ga=ga, world=world, run=run
@@ -201,11 +214,11 @@ def _colony(
 
 def _evolve_teams(
     stage: Stage, folder: Path, doc: dict[str, Any], table: GaitTable, ga: GASettings,
-    world: WorldSettings, colony: ColonySettings, run: StageRun,
+    world: WorldSettings, colony: ColonySettings, run: StageRun, team_from: np.ndarray | None,
 ) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]], np.ndarray]:  # fmt: skip
     """``ga.populations`` teams of ``colony.robots`` coevolved populations
-    (``evolve.coevolution``); returns (final teams (T, R, 16, 30), Figure 9 in both worlds,
-    test starts)."""
+    (``evolve.coevolution``; from ``team_from`` if given); returns (final teams (T, R, 16,
+    30), Figure 9 in both worlds, test starts)."""
     from evolve.coevolution import run_teams, team_figure9
 
     test_seq, seeds = stage_seeds(ga.seed, stage.name, ga.populations)
@@ -214,6 +227,7 @@ def _evolve_teams(
         stage, folder, seeds, robots=colony.robots, table=table, ga=ga, world=world,
         settings_text=json.dumps(doc, sort_keys=True), resume=run.resume,
         executor=run.executor, threads=threads, on_generation=run.on_generation,
+        initial=team_from,
     )  # fmt: skip
     test_starts = stage.starts(np.random.Generator(np.random.PCG64(test_seq)), ga.test_starts,
                                world)  # fmt: skip

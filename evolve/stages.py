@@ -272,13 +272,13 @@ def both_worlds(stage: Stage) -> list[tuple[str, Stage]]:
 @contextmanager
 def _stage_folder(
     stage: Stage, folder: Path, table: GaitTable, ga: GASettings, world: WorldSettings,
-    resume: bool, force: bool,
+    resume: bool, force: bool, extra: dict[str, Any] | None = None,
 ) -> Iterator[dict[str, Any]]:  # fmt: skip
     """Check the sizes, then hold the stage's folder (lock, ownership record) for the block;
-    yields the settings document."""
+    yields the settings document (with ``extra``'s entries)."""
     check_ga(ga, stage.max_steps)
     check_envelope(stage, table, world)
-    doc = stage_settings_doc(stage, ga, world, table)
+    doc = stage_settings_doc(stage, ga, world, table) | (extra or {})
     with run_folder(folder, doc, owned=STAGE_FILES, resume=resume, force=force,
                     command=f"evolve {stage.name}"):
         yield doc

@@ -22,6 +22,7 @@ from evolve.population import StageError, evaluate_sections, stage_seeds
 from evolve.settings import ColonySettings, GASettings, SettingsError, WorldSettings
 from evolve.starts import colony_starts
 from evolve.table import load_table
+from infra.errors import InputError
 from infra.executors import ProcessExecutor
 
 WORLD = WorldSettings()
@@ -177,6 +178,10 @@ def test_the_cli_takes_sections_for_the_colony_only(tmp_path, capsys):
               "--starts-per-generation", "2", "--out", str(tmp_path)]  # fmt: skip
     assert main(["evolve", "coverage", "--sections", "team", *common]) == 2
     assert "--sections is an option of the colony stage" in capsys.readouterr().err
+    assert main(["evolve", "colony", "--team-from", str(tmp_path), *common]) == 2
+    assert "--team-from is an option of the colony stage with --sections team" in (
+        capsys.readouterr().err
+    )
     nav = tmp_path / "nav.txt"
     nav.write_text(LIGHT_FOLLOWER)
     assert main(["evolve", "colony", "--sections", "team", "--navigation", str(nav),
@@ -238,3 +243,41 @@ def test_validate_refuses_a_team_of_the_wrong_size(tmp_path, capsys, files, robo
     extra = [] if robots is None else ["--robots", robots]
     assert main(["validate", *map(str, paths), *extra, "--out", str(tmp_path / "v")]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_team_started_from_a_shared_run(tmp_path):
+    """``--team-from``: team t's every population starts as the shared run's final population
+    t, best first, and every robot's first partner is that best; the source is recorded by
+    its SHA-256, so a resume from other populations is refused; bad sources are named."""
+    from evolve.coevolution import shared_populations
+
+    ga = dataclasses.replace(TINY, generations=2)
+    run_colony_stage(tmp_path / "shared", navigation=NAV, table=TABLE, ga=ga)
+    initial = shared_populations(tmp_path / "shared", ga)
+    final = np.load(tmp_path / "shared/colony/checkpoints/pop1_final.npz")
+    np.testing.assert_array_equal(initial[1][0], final["best"])
+    assert sorted(map(bytes, initial[1])) == sorted(map(bytes, final["population"]))
+    run_colony_stage(tmp_path / "team", navigation=NAV, table=TABLE, ga=ga, colony=TEAM,
+                     team_from=initial)  # fmt: skip
+    gen0 = np.load(tmp_path / "team/colony/populations/pop1_gen0000.npz")
+    for r in range(3):
+        np.testing.assert_array_equal(gen0["populations"][r], initial[1])
+    stage = colony_stage(WORLD, TEAM, NAV)
+    ev = evaluate_colony(
+        stage.genomes(initial[1]), gen0["starts"], table=TABLE.values, mode="coverage",
+        partners=stage.genomes(np.repeat(initial[1][:1], 3, axis=0)), role=2,
+    )  # fmt: skip
+    np.testing.assert_allclose(ev.squares.mean(axis=1), gen0["fitness"][2])
+    doc = json.loads((tmp_path / "team/colony/settings.json").read_text())
+    assert len(doc["team_from_sha256"]) == 64
+    other = initial.copy()
+    other[0, 0, 0, 0] ^= 1
+    with pytest.raises(InputError, match="team_from_sha256"):
+        run_colony_stage(tmp_path / "team", navigation=NAV, table=TABLE, ga=ga, colony=TEAM,
+                         team_from=other, resume=True)  # fmt: skip
+    with pytest.raises(StageError, match="pop0_final.npz: no such file; --team-from needs"):
+        shared_populations(tmp_path / "team", ga)
+    with pytest.raises(StageError, match="a population of 8, but this team stage's"):
+        shared_populations(tmp_path / "shared", dataclasses.replace(ga, population_size=10))
+    with pytest.raises(StageError, match="only for a team of sections"):
+        run_colony_stage(tmp_path / "x", navigation=NAV, table=TABLE, ga=ga, team_from=initial)

@@ -12,7 +12,8 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
     servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide
                                 --colony-fitness squares|alive|per_step|docks
                                 --alive-weight 8 --dock-weight 4 --dock-cap 2
-                                --start-power-spread 0 --sections shared|team]
+                                --start-power-spread 0 --sections shared|team
+                                --team-from DIR]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
@@ -135,6 +136,15 @@ def build_parser() -> argparse.ArgumentParser:
         "SPEC §7) or each its own, evolved by cooperative coevolution: a team of R "
         "populations per population, R × the runs (team); ColonySettings.sections, "
         "docs/colony.md",
+    )
+    p.add_argument(
+        "--team-from",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="colony, --sections team: start team t's every population from population t of "
+        "the finished shared colony run DIR (its final population, best first) instead of "
+        "at random; docs/colony.md",
     )
     p.add_argument(
         "--colony-fitness",
@@ -367,6 +377,8 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
         raise CliError("--colony-fitness is an option of the colony stage")
     if args.sections is not None and args.stage != "colony":
         raise CliError("--sections is an option of the colony stage")
+    if args.team_from is not None and args.sections != "team":
+        raise CliError("--team-from is an option of the colony stage with --sections team")
     colony = _colony(args)
     ga = ga_settings(args)
     table = load_table(args.table)
@@ -388,7 +400,13 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     else:
         from evolve.colony_stage import run_colony_stage
 
-        summary = run_colony_stage(args.out, navigation=navigation, colony=colony, **kw)
+        team_from = None
+        if args.team_from is not None:
+            from evolve.coevolution import shared_populations
+
+            team_from = shared_populations(args.team_from, ga)
+        summary = run_colony_stage(args.out, navigation=navigation, colony=colony,
+                                   team_from=team_from, **kw)  # fmt: skip
         _print_colony(summary, args.out)
     return 0
 
