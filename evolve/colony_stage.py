@@ -1,5 +1,6 @@
 """The colony stage (SPEC §7): area coverage learned by a colony of R robots sharing one
-station, all carrying the evolved chromosome.
+station, all carrying the evolved chromosome (or, with ``ColonySettings.sections = "team"``,
+each its own, ``evolve.coevolution``).
 
 It is the coverage stage of SPEC §5 with the colony's fitness: every individual runs as a
 colony of ``ColonySettings.robots`` from colony start poses (``evolve.starts.colony_starts``,
@@ -13,6 +14,7 @@ Layout under the run folder ``out``::
     colony/settings.json  colony/history_pop{k}.csv  colony/populations/  colony/checkpoints/
     colony/figure9.{csv,json,png}  colony/best_pop{k}.txt  colony/figure10_pop{k}.png
     colony/summary.json
+    (a team stage: best_pop{t}_robot{r}.txt, history_pop{t}_robot{r}.csv, team checkpoints)
 """
 
 from __future__ import annotations

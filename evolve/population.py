@@ -448,7 +448,6 @@ def write_history(path: Path, hist: np.ndarray) -> None:
 
 
 __all__ = [
-    "training_generation",
     "CHECKPOINT_EVERY",
     "HISTORY_COLUMNS",
     "Generation",
@@ -465,5 +464,6 @@ __all__ = [
     "save_generations",
     "stage_rng",
     "stage_seeds",
+    "training_generation",
     "write_history",
 ]
