@@ -121,3 +121,38 @@ def test_cross_prints_every_world_for_every_run(tmp_path: Path, capsys) -> None:
     row = next(line for line in out.splitlines() if line.startswith("| block always seen"))
     assert row == f"| block always seen, exact moves | {want:.1f} ({want:.1f}) |"
     assert "kill zone" in out and "navigation docks" in out
+
+
+def test_the_measurement_end_to_end_on_a_tiny_case(tmp_path: Path, capsys) -> None:
+    """``python -m servobot.robustness.measure``: 2 genomes × 1 start × 3 steps in both physics
+    worlds; every table side's numbers redone here (the matched world: the envelope with the
+    block never seen for ``shipped``, always for ``station-seen``), a rerun reads its physics
+    back, and another sample in the same folder is refused."""
+    import json
+
+    from infra.rundir import RunDirError
+    from servobot.robustness import measure
+
+    run, _ = _run_folder(tmp_path / "run")
+    out = tmp_path / "rank"
+    argv = ["--run", str(run), "--envelope", "default", "--per-population", "1", "--starts",
+            "1", "--steps", "3", "--draws", "2", "--workers", "1", "--out", str(out)]  # fmt: skip
+    assert measure.main(argv) == 0
+    doc = json.loads((out / "ranking.json").read_text())
+    assert doc["genomes"] == 2 and set(doc["agreement"]["top20"]) == {
+        "own world", "exact world", "matched world", "ceiling"}  # fmt: skip
+    genomes = ranking.top_genomes(run, 1)
+    starts = np.asarray(
+        json.loads((out / "matrix" / "robustness.json").read_text())["start_poses"]["coverage"]
+    )
+    for world, block in (("shipped", False), ("station-seen", True)):
+        want = ranking.table_runs(genomes, starts, table=PAPER_TABLE, seed=0, draws=2, steps=3,
+                                  envelope=ranking.seen(DEFAULT, block))  # fmt: skip
+        got = doc["agreement"]["top20"]["matched world"][world]["table_mean"]
+        assert got == pytest.approx(want.mean())
+    assert "| top20 | matched world | station-seen |" in (out / "ranking.md").read_text()
+    capsys.readouterr()
+    assert measure.main(argv) == 0  # the physics cells are read back
+    assert json.loads((out / "ranking.json").read_text()) == doc
+    with pytest.raises(RunDirError, match="holds a run made with other settings"):
+        measure.main([*argv[:4], "--per-population", "2", *argv[6:]])

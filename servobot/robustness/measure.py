@@ -10,9 +10,11 @@ Genomes: ``--per-population`` distinct genomes from each final population's top 
 from the same ``--starts`` seeded coverage starts in the table world and in the physics
 worlds ``shipped`` and ``station-seen`` (``run_matrix`` into ``OUT/matrix``, resumable). The
 table side is the arm's own world: the exact table for ``none``, else the mean over draws of
-the envelope. ``--tune`` scores a grid of envelopes on the same physics runs, each world
-against the envelope with the station block never (``shipped``) or always (``station-seen``)
-seen. Beside the agreement, its ceiling: the best any model reaches against one run of a world
+the envelope; beside it the exact table and the *matched* world (the arm's envelope with the
+station block never seen for ``shipped``, always for ``station-seen``: a table world told
+which station physics has). ``--tune`` scores a grid of envelopes on the same physics runs,
+each world against the envelope with the station block never (``shipped``) or always
+(``station-seen``) seen. Beside the agreement, its ceiling: the best any model reaches against one run of a world
 that varies as the envelope says (``ranking.noise_ceiling``: the arm's envelope, ``default``
 for ``none``, against one draw of itself, the same genomes and starts). Writes
 ``OUT/ranking.json`` and ``OUT/ranking.md``.
@@ -171,9 +173,13 @@ def main(argv: list[str] | None = None) -> int:
         )
         exact = own if envelope == NONE else table_runs(gs, starts, table=table, steps=a.steps)
         varied = DEFAULT if envelope == NONE else envelope
+        matched = {w: table_runs(gs, starts, table=table, envelope=seen(envelope, w != WORLDS[0]),
+                                 seed=a.seed, draws=a.draws, steps=a.steps)
+                   for w in WORLDS}  # fmt: skip
         out["agreement"][sample] = {
             "own world": {w: agreement(own, phys[w]) for w in WORLDS},
             "exact world": {w: agreement(exact, phys[w]) for w in WORLDS},
+            "matched world": {w: agreement(matched[w], phys[w]) for w in WORLDS},
             "ceiling": {w: noise_ceiling(gs, starts, table=table, seed=a.seed, draws=a.draws,
                                          envelope=seen(varied, w != WORLDS[0]), steps=a.steps)
                         for w in WORLDS},
