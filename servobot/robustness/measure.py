@@ -14,9 +14,10 @@ the envelope; beside it the exact table and the *matched* world (the arm's envel
 station block never seen for ``shipped``, always for ``station-seen``: a table world told
 which station physics has). ``--tune`` scores a grid of envelopes on the same physics runs,
 each world against the envelope with the station block never (``shipped``) or always
-(``station-seen``) seen. Beside the agreement, its ceiling: the best any model reaches against one run of a world
-that varies as the envelope says (``ranking.noise_ceiling``: the arm's envelope, ``default``
-for ``none``, against one draw of itself, the same genomes and starts). Writes
+(``station-seen``) seen. Beside the agreement, its ceiling: the best any model reaches
+against one run of a world that varies as the envelope says (``ranking.noise_ceiling``: the
+arm's envelope, ``default`` for ``none``, against one draw of itself, the same genomes and
+starts). Writes
 ``OUT/ranking.json`` and ``OUT/ranking.md``.
 """
 
