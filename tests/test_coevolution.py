@@ -11,7 +11,8 @@ import json
 import numpy as np
 import pytest
 from chromosome_text import LIGHT_FOLLOWER, G, chrom, gene
-from test_stages import Interrupt, _files
+from test_colony_stage import assert_resumes_bit_for_bit
+from test_stages import _files
 
 from evolve import evaluate, evaluate_colony
 from evolve.codec import format_chromosome, parse_chromosome, read_chromosome
@@ -122,21 +123,7 @@ def test_the_team_stage_files_and_final_test(team_run):
 
 
 def test_resume_after_interruption_equals_uninterrupted_run(team_run, tmp_path):
-    ref, _ = team_run
-
-    def kill_at(info):
-        if info["population"] == 1 and info["generation"] == 17:
-            raise Interrupt
-
-    with pytest.raises(Interrupt):
-        run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, colony=TEAM,
-                         on_generation=kill_at)  # fmt: skip
-    assert (tmp_path / "colony/checkpoints/pop1_team.npz").exists()
-    seen = []
-    run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, colony=TEAM, resume=True,
-                     on_generation=seen.append)  # fmt: skip
-    assert [(i["population"], i["generation"]) for i in seen] == [(1, g) for g in (16, 17, 18)]
-    assert _files(ref / "colony") == _files(tmp_path / "colony")
+    assert_resumes_bit_for_bit(team_run[0], tmp_path, "pop1_team.npz", ga=TINY, colony=TEAM)
 
 
 def test_teams_in_a_process_pool_give_the_same_files(team_run, tmp_path):

@@ -83,21 +83,27 @@ def test_outputs_and_their_numbers(tiny_run):
     )
 
 
-def test_resume_after_interruption_equals_uninterrupted_run(tiny_run, tmp_path):
-    ref, _ = tiny_run
+def assert_resumes_bit_for_bit(ref, out, checkpoint, ga=TINY, **kw):
+    """A colony stage killed in population 1's generation 17 (``ga``: 18 generations,
+    checkpoints at 0 and 16) leaves ``checkpoint`` and, resumed, replays generations 16–18
+    to the files of the uninterrupted run in ``ref``."""
 
     def kill_at(info):
         if info["population"] == 1 and info["generation"] == 17:
             raise Interrupt
 
     with pytest.raises(Interrupt):
-        run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, on_generation=kill_at)
-    assert (tmp_path / "colony/checkpoints/pop1.npz").exists()
+        run_colony_stage(out, navigation=NAV, table=TABLE, ga=ga, on_generation=kill_at, **kw)
+    assert (out / "colony/checkpoints" / checkpoint).exists()
     seen = []
-    run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, resume=True,
-                     on_generation=seen.append)  # fmt: skip
+    run_colony_stage(out, navigation=NAV, table=TABLE, ga=ga, resume=True,
+                     on_generation=seen.append, **kw)  # fmt: skip
     assert [(i["population"], i["generation"]) for i in seen] == [(1, g) for g in (16, 17, 18)]
-    assert _files(ref / "colony") == _files(tmp_path / "colony")
+    assert _files(ref / "colony") == _files(out / "colony")
+
+
+def test_resume_after_interruption_equals_uninterrupted_run(tiny_run, tmp_path):
+    assert_resumes_bit_for_bit(tiny_run[0], tmp_path, "pop1.npz")
 
 
 def test_populations_in_a_process_pool_give_the_same_files(tiny_run, tmp_path):

@@ -361,22 +361,21 @@ FITNESS_TERMS = (
 """(option, ``ColonySettings`` field, the ``--colony-fitness`` that reads it)."""
 
 
+STAGE_OPTIONS = (
+    ("robots", "colony"), ("blocking", "colony"), ("start_power_spread", "colony"),
+    ("colony_fitness", "colony"), ("sections", "colony"), ("nav_start_power", "navigation"),
+)  # fmt: skip
+"""(option's field, the one stage that takes it): refused with any other stage."""
+
+
 def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     from evolve import stages
     from evolve.table import load_table, with_power_model
 
-    if args.robots is not None and args.stage != "colony":
-        raise CliError("--robots is an option of the colony stage")
-    if args.blocking is not None and args.stage != "colony":
-        raise CliError("--blocking is an option of the colony stage")
-    if args.start_power_spread is not None and args.stage != "colony":
-        raise CliError("--start-power-spread is an option of the colony stage")
-    if args.nav_start_power is not None and args.stage != "navigation":
-        raise CliError("--nav-start-power is an option of the navigation stage")
-    if args.colony_fitness is not None and args.stage != "colony":
-        raise CliError("--colony-fitness is an option of the colony stage")
-    if args.sections is not None and args.stage != "colony":
-        raise CliError("--sections is an option of the colony stage")
+    for field, stage in STAGE_OPTIONS:
+        if getattr(args, field) is not None and args.stage != stage:
+            flag = "--" + field.replace("_", "-")
+            raise CliError(f"{flag} is an option of the {stage} stage")
     if args.team_from is not None and args.sections != "team":
         raise CliError("--team-from is an option of the colony stage with --sections team")
     colony = _colony(args)
