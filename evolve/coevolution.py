@@ -32,7 +32,6 @@ populations, the partners, every generator's state and the history).
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import functools
 import hashlib
@@ -56,14 +55,14 @@ from evolve.population import (
     Stage,
     StageError,
     generation_record,
-    run_population_job,
     save_generations,
     training_generation,
     write_history,
 )
 from evolve.settings import GASettings, WorldSettings
+from evolve.stages import _populations_on
 from evolve.table import GaitTable
-from infra.executors import BatchError, Executor, Failed, values_or_raise
+from infra.executors import Executor
 
 
 @dataclass
@@ -299,18 +298,8 @@ def run_teams(
         ]
     jobs = [PopulationJob(t, stage, folder, kwargs[t], threads, evolve_team)
             for t in range(ga.populations)]  # fmt: skip
-    outcomes: list[Any] = [None] * len(jobs)
-    with contextlib.closing(executor.imap(run_population_job, jobs)) as finished:
-        for t, outcome in finished:
-            outcomes[t] = outcome
-            if on_generation is not None and not isinstance(outcome, Failed):
-                for rows in outcome.value.history:
-                    on_generation(generation_record(stage.name, t, ga.generations,
-                                                    tuple(np.mean(rows, axis=0))))  # fmt: skip
-    try:
-        return values_or_raise(outcomes, [f"team {t}" for t in range(len(jobs))])
-    except BatchError as exc:
-        raise StageError(f"{exc}; the checkpoints are kept, rerun with --resume") from exc
+    return _populations_on(executor, jobs, on_generation, "team",
+                           lambda res: res.history.mean(axis=1))  # fmt: skip
 
 
 def shared_populations(run: Path, ga: GASettings) -> np.ndarray:

@@ -38,7 +38,7 @@ import io
 import json
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypedDict
@@ -327,22 +327,24 @@ def _kernel_threads(executor: Executor) -> int:
 
 
 def _populations_on(
-    executor: Executor, jobs: list[PopulationJob], on_generation: OnGeneration | None
-) -> list[PopulationResult]:
-    """Each population as one run of ``executor``; ``on_generation`` hears a population's
-    generations when it finishes."""
+    executor: Executor, jobs: list[PopulationJob], on_generation: OnGeneration | None,
+    what: str = "population", rows: Callable[[Any], Any] = lambda res: res.history,
+) -> list[Any]:
+    """Each population (or team: ``what``) as one run of ``executor``; ``on_generation``
+    hears its generations when it finishes, one record per ``HISTORY_COLUMNS`` row of
+    ``rows(result)``."""
     outcomes: list[Any] = [None] * len(jobs)
     with contextlib.closing(executor.imap(run_population_job, jobs)) as finished:
         for k, outcome in finished:
             outcomes[k] = outcome
             if on_generation is not None and not isinstance(outcome, Failed):
                 res, job = outcome.value, jobs[k]
-                for row in res.history:
+                for row in rows(res):
                     on_generation(
                         generation_record(job.stage.name, k, job.kwargs["ga"].generations, row)
                     )
     try:
-        return values_or_raise(outcomes, [f"population {k}" for k in range(len(jobs))])
+        return values_or_raise(outcomes, [f"{what} {k}" for k in range(len(jobs))])
     except BatchError as exc:
         raise StageError(f"{exc}; the checkpoints are kept, rerun with --resume") from exc
 
