@@ -156,3 +156,27 @@ def test_the_measurement_end_to_end_on_a_tiny_case(tmp_path: Path, capsys) -> No
     assert json.loads((out / "ranking.json").read_text()) == doc
     with pytest.raises(RunDirError, match="holds a run made with other settings"):
         measure.main([*argv[:4], "--per-population", "2", *argv[6:]])
+
+
+def test_the_bests_alone_and_an_empty_sample(tmp_path: Path, capsys) -> None:
+    """``--per-population 0 --bests`` measures every saved generation's best and nothing else;
+    ``--per-population 0`` alone, a negative count, or ``--tune`` without the top-20 % sample
+    exit 2 naming the option."""
+    import json
+
+    from servobot.robustness import measure
+
+    run, _ = _run_folder(tmp_path / "run")
+    argv = ["--run", str(run), "--starts", "1", "--steps", "2", "--draws", "1", "--workers",
+            "1", "--out", str(tmp_path / "rank")]  # fmt: skip
+    for bad in (["--per-population", "0"], ["--per-population", "-1", "--bests"],
+                ["--per-population", "0", "--bests", "--tune"]):  # fmt: skip
+        with pytest.raises(SystemExit) as e:
+            measure.main([*argv, *bad])
+        assert e.value.code == 2
+        assert "--per-population" in capsys.readouterr().err
+    assert measure.main([*argv, "--per-population", "0", "--bests"]) == 0
+    doc = json.loads((tmp_path / "rank" / "ranking.json").read_text())
+    assert doc["genomes"] == 4 and list(doc["agreement"]) == ["generation_bests"]
+    names = sorted(p.stem for p in (tmp_path / "rank" / "genomes").glob("*.txt"))
+    assert names == ["p0g0best", "p0g7best", "p1g0best", "p1g7best"]

@@ -126,7 +126,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--run", type=Path, required=True, help="an evolve run folder")
     p.add_argument("--envelope", default="none", help="the arm's envelope (its own world)")
     p.add_argument("--table", default="paper")
-    p.add_argument("--per-population", type=int, default=5)
+    p.add_argument("--per-population", type=int, default=5,
+                   help="genomes per final population's top 20 %% (0: only --bests)")
     p.add_argument("--bests", action="store_true", help="also every saved generation's best")
     p.add_argument("--starts", type=int, default=4)
     p.add_argument("--steps", type=int, default=600, help="steps per run (SPEC §5: 600)")
@@ -137,7 +138,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, required=True)
     a = p.parse_args(argv)
     envelope, table = load_envelope(a.envelope), load_table(a.table)
-    samples = {"top20": top_genomes(a.run, a.per_population)}
+    if a.per_population < 0 or (a.per_population == 0 and not a.bests):
+        p.error("--per-population must be ≥ 1, or 0 with --bests (the bests alone)")
+    if a.tune and a.per_population == 0:
+        p.error("--tune scores the top-20 % sample: give --per-population ≥ 1")
+    samples = {"top20": top_genomes(a.run, a.per_population)} if a.per_population else {}
     if a.bests:
         samples["generation_bests"] = generation_bests(a.run)
     genomes = [g for s in samples.values() for g in s]
