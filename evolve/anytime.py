@@ -11,6 +11,12 @@ Two published variants, both here, with MuJoCo physics as the real robot:
 - ``model``: co-evolution of model parameters (G. Parker, punctuated anytime learning),
   here fitted rather than evolved. The gait table is corrected by the per-cycle residuals
   physics measured along the tested runs (``corrected_table``).
+- ``transfer``: the transferability approach (S. Koos, J.-B. Mouret & S. Doncieux, "The
+  transferability approach: crossing the reality gap in evolutionary robotics", 2013). Each
+  tested genome's disparity, table minus physics fitness, is kept with its behaviour in the
+  table world (``behaviour``: how its runs end from a fixed set of starts); every individual's
+  disparity is predicted from its nearest tested behaviours (``predict_disparity``) and the GA
+  selects on table fitness minus that prediction: a predicted physics fitness.
 - ``none``: the control arm. The same punctuations are measured and recorded but not fed
   back; its populations are exactly ``servobot evolve coverage``'s with the same seed.
 
@@ -20,10 +26,12 @@ The loop, populations in lockstep (each a ``PopulationRun`` seeded as coverage's
         table_g = base table (model: base + pooled residuals of the punctuations before g)
         each population: f = evaluate on table_g                  # SPEC §5, 10 starts
         f' = f · bias (bias: from the last punctuation, else 1)
+        f' = max(0, f − d̂) (transfer: d̂ the mean d of the k nearest archived behaviours)
         if g is a punctuation (K, 2K, … ≤ G):
             the T best distinct genomes of each population by f' run in physics from M starts
             drawn for g, and in the table world on table_g from the same starts
             bias:  b = physics / table per tested genome; the population's mean b for the rest
+            transfer: d = table − physics and the behaviour of each tested genome archived
             model: residuals pooled, table corrected, generation g re-evaluated on it
         each population: commit(f')                                # elite and roulette on f'
 
@@ -51,7 +59,8 @@ from typing import Any
 import numpy as np
 
 from evolve.codec import format_chromosome, parse_chromosome
-from evolve.envelope import key_of_test
+from evolve.envelope import NONE, key_of_test
+from evolve.interpreter import END_KILL_ZONE, END_POWER_EMPTY
 from evolve.population import (
     Generation,
     OnGeneration,
@@ -69,8 +78,9 @@ from evolve.table import COLUMNS, N_GAITS, GaitTable, table_to_json, validate_ta
 from infra.bounds import is_finite_number
 from infra.io import atomic_write_json, read_json
 
-METHODS = ("none", "bias", "model")
-"""What a punctuation feeds back: nothing (control), a fitness bias, a corrected table."""
+METHODS = ("none", "bias", "model", "transfer")
+"""What a punctuation feeds back: nothing (control), a fitness bias, a corrected table, a
+disparity predicted from behaviour."""
 RECORDS = "punctuations"
 """Folder of the punctuation records, ``gen{g:04d}.json``."""
 TABLES = "tables"
@@ -87,7 +97,8 @@ class AnytimeSettings:
 
     method: str = "bias"
     """``none`` (measure, feed nothing back: the table-only control), ``bias`` (fitness
-    biasing) or ``model`` (corrected gait table) [chosen]."""
+    biasing), ``model`` (corrected gait table) or ``transfer`` (predicted disparity)
+    [chosen]."""
     every: int = 32
     """K: a punctuation at generations K, 2K, … up to G (none at generation 0, whose random
     controllers would spend physics on nothing) [chosen]."""
@@ -110,11 +121,18 @@ class AnytimeSettings:
     """``model``: a cycle that begins with the robot's centre closer than this to the station
     block is not counted: it measures the block (the table world has none), not the gait
     (probe reach 23.7 cm) [chosen]."""
+    neighbours: int = 3
+    """``transfer``: k, the archived behaviours whose mean disparity an individual is
+    predicted to have [chosen]."""
+    descriptor_starts: int = 4
+    """``transfer``: the fixed coverage starts (drawn once per run) from which a behaviour is
+    described, ``physics_steps`` steps each in the exact table world [chosen]."""
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise AnytimeError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        for name in ("every", "top", "physics_starts", "physics_steps", "final_starts"):
+        for name in ("every", "top", "physics_starts", "physics_steps", "final_starts",
+                     "neighbours", "descriptor_starts"):  # fmt: skip
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise AnytimeError(f"{name} must be an integer ≥ 1, got {value!r}")
@@ -296,6 +314,71 @@ def population_bias(records: dict[int, dict[str, Any]], k: int, upto: int) -> Bi
     return Bias(own, float(rec["bias"][str(k)]))
 
 
+BEHAVIOUR_FEATURES = ("squares", "inner", "x", "y", "kill_zone", "power_empty", "docks")
+"""Per descriptor start, what ``behaviour`` describes of a run (each scaled to about 0–1)."""
+DOCKS_SCALE = 10.0
+"""Docks of a run that count as 1 in a behaviour (a 600-step run docks ≈ 2–7 times)."""
+
+
+def behaviour(ev: Any, world: WorldSettings) -> np.ndarray:
+    """(P, S · 7) behaviour descriptors of an evaluation (P individuals × S starts): per start
+    the squares (of 100) and inner squares (of 64) reached, the end point (x, y / arena size),
+    whether the run ended in the kill zone or with an empty store, and the docks / 10."""
+    feats = np.stack(
+        [
+            ev.squares / MAX_SQUARES, ev.inner_squares / world.inner_square_count,
+            ev.final_pose[..., 0] / world.arena_size, ev.final_pose[..., 1] / world.arena_size,
+            ev.end == END_KILL_ZONE, ev.end == END_POWER_EMPTY, ev.docks / DOCKS_SCALE,
+        ],
+        axis=-1,
+    ).astype(np.float64)  # fmt: skip
+    return feats.reshape(feats.shape[0], -1)
+
+
+def predict_disparity(
+    archive: np.ndarray, disparity: np.ndarray, queries: np.ndarray, k: int
+) -> np.ndarray:
+    """(Q,) the mean disparity of each query's ``k`` nearest archived behaviours (Euclidean;
+    ties to the earlier archive entry); zeros when the archive is empty."""
+    if len(archive) == 0:
+        return np.zeros(len(queries))
+    dist = np.sqrt(((queries[:, None, :] - archive[None, :, :]) ** 2).sum(axis=-1))
+    nearest = np.argsort(dist, axis=1, kind="stable")[:, :k]
+    return disparity[nearest].mean(axis=1)
+
+
+def transfer_archive(
+    records: dict[int, dict[str, Any]], upto: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(behaviours (N, F), disparities (N,)) of every genome tested at a punctuation at or
+    before ``upto`` whose physics finished, in generation then record order."""
+    tested = [t for g in sorted(records) if g <= upto for t in records[g]["tested"]
+              if t.get("disparity") is not None]  # fmt: skip
+    if not tested:
+        return np.zeros((0, 0)), np.zeros(0)
+    return (np.array([t["descriptor"] for t in tested], dtype=np.float64),
+            np.array([t["disparity"] for t in tested], dtype=np.float64))  # fmt: skip
+
+
+Describe = Callable[[np.ndarray], np.ndarray]
+"""``describe(sections (P, 8, 30))`` → (P, F) behaviours (method transfer)."""
+
+
+def describer(stage: Stage, table: GaitTable, world: WorldSettings, settings: AnytimeSettings,
+              seed: int) -> Describe:  # fmt: skip
+    """The behaviour of sections in ``stage``'s exact table world (no envelope: a behaviour
+    must not depend on a generation's draws) from ``settings.descriptor_starts`` fixed starts
+    (key (2,) of the run's anytime draws), ``physics_steps`` steps each."""
+    starts = stage.starts(stage_rng(seed, "anytime", 2), settings.descriptor_starts, world)
+    exact = dataclasses.replace(stage, envelope=NONE, max_steps=settings.physics_steps)
+
+    def describe(sections: np.ndarray) -> np.ndarray:
+        _, ev, _, inverse = evaluate_sections(sections, starts, exact, table, world)
+        return behaviour(ev, world)[inverse]
+
+    return describe
+
+
 def _key(text_genes: list[str]) -> bytes:
     """The key of a section recorded as text, one gene a line."""
     return section_keys(parse_chromosome("\n".join(text_genes))[None])[0]
@@ -322,7 +405,7 @@ def _tested(
 def _measure(
     g: int, runs: list[PopulationRun], chosen: list[tuple[int, int, int]], *, stage: Stage,
     in_use: GaitTable, base: GaitTable, ga: GASettings, world: WorldSettings,
-    settings: AnytimeSettings, test_in_physics: PhysicsTester,
+    settings: AnytimeSettings, test_in_physics: PhysicsTester, describe: Describe,
 ) -> dict[str, Any]:  # fmt: skip
     """Run the chosen genomes in physics and in the table world; the punctuation's record."""
     rng = stage_rng(ga.seed, "anytime", 1, g)
@@ -354,6 +437,11 @@ def _measure(
             "errors": [run.error for run in mine if run.error],
         })  # fmt: skip
     means = _apply_bias_rule(tested, runs)
+    if settings.method == "transfer":
+        for t, d in zip(tested, describe(sections), strict=True):
+            t["descriptor"] = d.tolist()
+            phys = t["physics_fitness"]
+            t["disparity"] = None if phys is None else t["table_fitness"] - phys
     gaits = np.concatenate([run.gaits for run in measured]).astype(np.int64)
     res = np.concatenate([run.residuals.reshape(-1, 3) for run in measured])
     total, count = residual_sums(gaits, res)
@@ -481,6 +569,15 @@ def check_record(
                 raise ValueError("8 genes")
         except ValueError as exc:
             raise bad(f"{name}.section", f"a coverage section of 8 genes ({exc})") from None
+    if settings.method == "transfer":
+        width = len(BEHAVIOUR_FEATURES) * settings.descriptor_starts
+        for j, t in enumerate(tested):
+            if not _numbers(t.get("descriptor"), (width,), lambda v: _is_real(v, 0.0, 1e6)):
+                raise bad(f"tested[{j}].descriptor", f"{width} finite numbers ≥ 0 (a behaviour)")
+            d = t.get("disparity", "missing")
+            if not (d is None or _is_real(d, -MAX_SQUARES, MAX_SQUARES)):
+                raise bad(f"tested[{j}].disparity", f"null or a finite number of squares "
+                          f"−{MAX_SQUARES}–{MAX_SQUARES}, got {d!r}")  # fmt: skip
     bias = rec["bias"]
     if settings.method == "bias":
         want = [str(k) for k in range(p)]
@@ -598,6 +695,7 @@ def evolve_anytime(
                       settings_text=settings_text, resume=resume)
         for k in range(ga.populations)
     ]  # fmt: skip
+    describe = describer(stage, table, world, settings, ga.seed)
     physics_s = 0.0
     while live := [r for r in runs if not r.finished]:
         g = min(r.generation for r in live)
@@ -607,7 +705,7 @@ def evolve_anytime(
         for r in active:
             r.table = in_use
             evaluated[r.k] = r.evaluate()
-        fitness = _in_force(active, evaluated, records, g - 1, settings)
+        fitness = _in_force(active, evaluated, records, g - 1, settings, describe)
         if g in gens:
             chosen = _tested(active, fitness, settings.top)
             path = folder / RECORDS / f"gen{g:04d}.json"
@@ -619,10 +717,12 @@ def evolve_anytime(
                 rec = _measure(
                     g, active, chosen, stage=stage, in_use=in_use, base=table, ga=ga,
                     world=world, settings=settings, test_in_physics=test_in_physics,
+                    describe=describe,
                 )  # fmt: skip
                 records[g] = _save(folder, rec, table, records | {g: rec}, settings, table_meta)
                 physics_s += rec["physics_wall_s"]
-            fitness = _after(active, evaluated, records, g, stage, table, world, settings, ga.seed)
+            fitness = _after(active, evaluated, records, g, stage, table, world, settings, ga.seed,
+                             describe)  # fmt: skip
             if on_punctuation is not None:
                 on_punctuation(records[g])
         for r in active:
@@ -642,13 +742,20 @@ def evolve_anytime(
 def _in_force(
     active: list[PopulationRun], evaluated: dict[int, Generation],
     records: dict[int, dict[str, Any]], upto: int, settings: AnytimeSettings,
+    describe: Describe,
 ) -> dict[int, np.ndarray]:  # fmt: skip
-    """Each population's fitness in force: the table fitness, times its bias (method bias)."""
+    """Each population's fitness in force: the table fitness, times its bias (method bias),
+    or less its predicted disparity, not below 0 (method transfer, once a punctuation
+    archived a behaviour)."""
+    archive, disparity = transfer_archive(records, upto)
     out = {}
     for r in active:
         f = evaluated[r.k].fitness
         if settings.method == "bias":
             f = f * population_bias(records, r.k, upto).factors(r.pop)
+        elif settings.method == "transfer" and len(disparity):
+            d = predict_disparity(archive, disparity, describe(r.pop), settings.neighbours)
+            f = np.maximum(f - d, 0.0)
         out[r.k] = f
     return out
 
@@ -656,13 +763,13 @@ def _in_force(
 def _after(
     active: list[PopulationRun], evaluated: dict[int, Generation],
     records: dict[int, dict[str, Any]], g: int, stage: Stage, base: GaitTable,
-    world: WorldSettings, settings: AnytimeSettings, seed: int,
+    world: WorldSettings, settings: AnytimeSettings, seed: int, describe: Describe,
 ) -> dict[int, np.ndarray]:  # fmt: skip
     """The fitness in force once punctuation ``g`` applies: the new bias, or the generation
     re-evaluated on the corrected table (from the same starts, with the same envelope draws:
     key (seed, g))."""
     if settings.method != "model":
-        return _in_force(active, evaluated, records, g, settings)
+        return _in_force(active, evaluated, records, g, settings, describe)
     table = model_table(base, records, g, settings)
     out = {}
     for r in active:
@@ -702,7 +809,9 @@ __all__ = [
     "OnPunctuation",
     "PhysicsRun",
     "PhysicsTester",
+    "behaviour",
     "bias_rule",
+    "describer",
     "corrected_table",
     "evolve_anytime",
     "final_starts",
@@ -710,10 +819,12 @@ __all__ = [
     "load_records",
     "model_table",
     "population_bias",
+    "predict_disparity",
     "pooled_residuals",
     "punctuation_generations",
     "residual_sums",
     "section_keys",
     "table_error",
     "top_distinct",
+    "transfer_archive",
 ]

@@ -40,7 +40,8 @@ CONE_EDGE_LENGTH_FACTOR = 1.5
 ROBOT_COLOURS = ("tab:blue", "tab:purple", "tab:brown", "tab:pink", "tab:cyan", "tab:olive",
                  "tab:gray", "black")  # fmt: skip
 """Track colour of colony robot i (cycled): none of the arena's green, red and orange."""
-ANYTIME_COLOURS = {"none": "tab:gray", "bias": "tab:blue", "model": "tab:orange"}
+ANYTIME_COLOURS = {"none": "tab:gray", "bias": "tab:blue", "model": "tab:orange",
+                   "transfer": "tab:green"}  # fmt: skip
 """Colour of each anytime method's curves (the control grey)."""
 HEADING_ARROW = 18.0
 """Length of the start-heading arrow, arena units."""

@@ -22,11 +22,13 @@ from evolve.anytime import (
     AnytimeSettings,
     Bias,
     PhysicsRun,
+    behaviour,
     bias_rule,
     corrected_table,
     evolve_anytime,
     model_table,
     population_bias,
+    predict_disparity,
     punctuation_generations,
     section_keys,
     table_error,
@@ -157,9 +159,35 @@ def test_table_error_is_against_the_table_in_use():
     assert err == {"F": 0.0, "T": 1.0, "dH": 2.0, "cycles": 2}
 
 
+def test_disparity_is_the_mean_of_the_nearest_tested_behaviours():
+    archive = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [5.0, 5.0]])
+    disparity = np.array([2.0, 4.0, 6.0, 100.0])
+    queries = np.array([[0.1, 0.1], [5.0, 5.0], [4.0, 4.0]])
+    np.testing.assert_array_equal(predict_disparity(archive, disparity, queries, 1), [2, 100, 100])
+    near3 = (100 + 4 + 6) / 3  # (5, 5), then (1, 0) and (0, 1), equally near
+    np.testing.assert_allclose(predict_disparity(archive, disparity, queries, 3),
+                               [4, near3, near3], rtol=1e-15)  # fmt: skip
+    assert predict_disparity(archive, disparity, queries, 9).tolist() == [28.0] * 3  # all four
+    tie = predict_disparity(np.array([[1.0], [-1.0]]), np.array([1.0, 3.0]), np.zeros((1, 1)), 1)
+    assert tie.tolist() == [1.0]  # equally near: the earlier entry
+    assert predict_disparity(np.zeros((0, 0)), np.zeros(0), queries, 3).tolist() == [0.0] * 3
+
+
+def test_a_behaviour_describes_how_each_run_ends():
+    """Per start: squares / 100, inner / 64, end x, y / 500, kill zone, power empty, docks / 10."""
+    ev = dataclasses.make_dataclass("Ev", ["squares", "inner_squares", "final_pose", "end",
+                                           "docks"])(  # fmt: skip
+        np.array([[50, 10]]), np.array([[32, 0]]), np.array([[[250.0, 125.0, 90.0],
+        [0.0, 500.0, 0.0]]]), np.array([[1, 2]]), np.array([[5, 0]]),
+    )  # fmt: skip
+    want = [0.5, 0.5, 0.5, 0.25, 1, 0, 0.5, 0.1, 0, 0, 1, 0, 1, 0]
+    np.testing.assert_array_equal(behaviour(ev, WORLD), [want])
+
+
 def test_settings_refuse_what_cannot_run():
     for bad in (dict(method="fast"), dict(every=0), dict(top=0), dict(physics_starts=-1),
                 dict(physics_steps=0), dict(final_starts=0), dict(min_samples=0),
+                dict(neighbours=0), dict(descriptor_starts=0),
                 dict(station_margin_cm=float("nan"))):  # fmt: skip
         with pytest.raises(AnytimeError, match=next(iter(bad)).split("_")[0]):
             AnytimeSettings(**bad)
@@ -231,6 +259,30 @@ def test_bias_is_fed_back_and_recorded(tmp_path):
     assert [r.best.tolist() for r in result.results] != [r.best.tolist() for r in none.results]
 
 
+def test_transfer_archives_disparities_and_selects_on_predicted_physics(tmp_path):
+    """Every tested genome's behaviour and disparity (table − physics, the same M starts) are
+    recorded; genomes the fake physics halves lose fitness to the prediction, so transfer
+    learns other controllers than the control; a damaged behaviour is refused on resume."""
+    result = _evolve(tmp_path, "transfer")
+    for rec in result.records:
+        for t in rec["tested"]:
+            assert len(t["descriptor"]) == 7 * AnytimeSettings().descriptor_starts
+            assert t["disparity"] == t["table_fitness"] - t["physics_fitness"]
+            if t["section"][0][0] == "0":  # physics = table for these
+                assert t["disparity"] == 0.0
+    assert any(t["disparity"] > 0 for rec in result.records for t in rec["tested"])
+    none = _evolve(tmp_path / "none", "none")
+    assert [r.history.tolist() for r in result.results] != [
+        r.history.tolist() for r in none.results
+    ]
+    path = tmp_path / "punctuations/gen0002.json"
+    rec = json.loads(path.read_text())
+    rec["tested"][0]["descriptor"][0] = -1.0
+    path.write_text(json.dumps(rec))
+    with pytest.raises(AnytimeError, match=r"tested\[0\]\.descriptor"):
+        _evolve(tmp_path, "transfer", resume=True)
+
+
 def test_model_corrects_the_table_and_saves_it(tmp_path):
     result = _evolve(tmp_path, "model")
     assert result.table.values[0, 0] == PAPER_TABLE[0, 0] - 0.5  # every gait-0 cycle short
@@ -262,7 +314,7 @@ def test_resume_replays_its_punctuations_without_physics(tmp_path):
     assert _no_walls(ref.records) == _no_walls(cut.records)
 
 
-@pytest.mark.parametrize("method", ["bias", "model"])
+@pytest.mark.parametrize("method", ["bias", "model", "transfer"])
 def test_anytime_in_an_envelope_resumes_bit_for_bit(tmp_path, method):
     """Evolved in the envelope default (SPEC §9): the punctuations' table runs and the model's
     re-evaluations are keyed draws, so a resumed run replays to the same files; and the
@@ -369,6 +421,17 @@ def test_servobot_anytime_end_to_end(nav_file, tmp_path, capsys):
     assert settings["AnytimeSettings"]["physics_steps"] == 3 and settings["model_sha256"]
     assert settings["Envelope"] == DEFAULT.to_dict()  # the populations evolved in it
     assert "Envelope" not in json.loads((base / "anytime" / "settings.json").read_text())
+    transfer = tmp_path / "transfer"  # its own settings need not match the baseline's
+    code = servobot([*args, "--method", "transfer", "--neighbours", "2", "--descriptor-starts",
+                     "2", "--out", str(transfer), "--baseline", str(base)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    rec = json.loads((transfer / "anytime" / "punctuations" / "gen0002.json").read_text())
+    assert len(rec["tested"][0]["descriptor"]) == 7 * 2
+    kept = json.loads((transfer / "anytime" / "settings.json").read_text())["AnytimeSettings"]
+    assert (kept["method"], kept["neighbours"], kept["descriptor_starts"]) == ("transfer", 2, 2)
+    assert servobot([*args, "--method", "transfer", "--neighbours", "0",
+                     "--out", str(tmp_path / "bad")]) == 2  # fmt: skip
+    assert "--neighbours" in capsys.readouterr().err
 
 
 def test_run_anytime_resumes_after_an_interrupt(nav_file, tmp_path):
@@ -436,6 +499,7 @@ def test_bench_evolves_every_method_in_its_envelope(nav_file, tmp_path, monkeypa
             "--envelope", "default", "--executor", "serial"]  # fmt: skip
     bench.run_arms(bench.parse_args(argv))
     assert [f.name for f, _ in calls] == ["none", "bias"]
+    assert calls[1][1]["settings"].neighbours == AnytimeSettings().neighbours
     assert all(kw["envelope"] == DEFAULT for _, kw in calls)
     bad = tmp_path / "bad.json"
     bad.write_text('{"scatter_scale": -1}')

@@ -1,10 +1,10 @@
-"""Does anytime learning pay in physics? Table-only, ``bias`` and ``model`` on the same seeds.
+"""Does anytime learning pay in physics? Table-only and each method on the same seeds.
 
 ``python -m servobot.anytime.bench --navigation FILE --out runs/anytime_bench --seeds 0 1
 [--table paper|PATH] [--populations 3] [--generations 128] [--population-size 128]
 [--every 32] [--top 2] [--physics-starts 2] [--physics-steps 600] [--final-starts 20]
-[--methods none bias model] [--envelope none|default|FILE.json] [--executor process]
-[--workers N] [--resume]``
+[--methods none bias model transfer] [--neighbours 3] [--descriptor-starts 4]
+[--envelope none|default|FILE.json] [--executor process] [--workers N] [--resume]``
 
 For each seed it runs ``servobot.anytime.run.run_anytime`` once per method into
 ``OUT/seed{s}/{method}`` (``none`` first: it is the others' baseline; the control measures
@@ -63,6 +63,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--physics-starts", type=int, default=2)
     p.add_argument("--physics-steps", type=int, default=600)
     p.add_argument("--final-starts", type=int, default=20)
+    p.add_argument("--neighbours", type=int, default=AnytimeSettings.neighbours,
+                   help="transfer: k nearest tested behaviours")  # fmt: skip
+    p.add_argument("--descriptor-starts", type=int, default=AnytimeSettings.descriptor_starts,
+                   help="transfer: fixed starts of a behaviour")  # fmt: skip
     p.add_argument("--envelope", default="none", metavar="none|default|FILE.json",
                    help="envelope of variation every arm evolves in (SPEC §9; default none)")
     p.add_argument("--resume", action="store_true")
@@ -84,6 +88,7 @@ def run_arms(args: argparse.Namespace) -> dict[int, dict[str, dict[str, Any]]]:
     base = AnytimeSettings(
         every=args.every, top=args.top, physics_starts=args.physics_starts,
         physics_steps=args.physics_steps, final_starts=args.final_starts,
+        neighbours=args.neighbours, descriptor_starts=args.descriptor_starts,
     )  # fmt: skip
     methods = ["none"] + [m for m in args.methods if m != "none"]
     out: dict[int, dict[str, dict[str, Any]]] = {}

@@ -184,10 +184,15 @@ method aside): the GA's sizes and seed, the punctuations, the base table, the wo
 the robot model. The envelope may differ (a run in an envelope against the plain control)."""
 
 
+METHOD_FIELDS = ("method", "neighbours", "descriptor_starts")
+"""``AnytimeSettings`` fields that belong to one method (a baseline may differ in them)."""
+
+
 def _comparable(doc: dict[str, Any]) -> dict[str, Any]:
     out = {k: doc.get(k) for k in BASELINE_FIELDS}
     if isinstance(out["AnytimeSettings"], dict):
-        out["AnytimeSettings"] = {k: v for k, v in out["AnytimeSettings"].items() if k != "method"}
+        out["AnytimeSettings"] = {k: v for k, v in out["AnytimeSettings"].items()
+                                  if k not in METHOD_FIELDS}  # fmt: skip
     return out
 
 

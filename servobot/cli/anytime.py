@@ -2,9 +2,10 @@
 
 A thin layer over ``servobot.anytime.run.run_anytime``::
 
-    servobot anytime --navigation FILE [--table paper|PATH] [--method none|bias|model]
+    servobot anytime --navigation FILE [--table paper|PATH] [--method none|bias|model|transfer]
                      [--every K] [--top T] [--physics-starts M] [--physics-steps N]
-                     [--final-starts N] [--populations P] [--generations G]
+                     [--final-starts N] [--neighbours K] [--descriptor-starts D]
+                     [--populations P] [--generations G]
                      [--population-size N] [--seed S] [--model FILE] [--baseline DIR]
                      [--executor process|ray|ray:ADDRESS|serial] [--workers W]
                      [--out DIR] [--resume] [--force]
@@ -65,6 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
         ("--physics-starts", "physics_starts", "start poses per punctuation, M"),
         ("--physics-steps", "physics_steps", "steps of every physics run"),
         ("--final-starts", "final_starts", "fresh starts of the final test"),
+        ("--neighbours", "neighbours", "transfer: tested behaviours an individual's disparity "
+         "is predicted from, k"),
+        ("--descriptor-starts", "descriptor_starts", "transfer: fixed starts a behaviour is "
+         "described from"),
     ):
         default = getattr(DEFAULTS, field)
         p.add_argument(flag, type=int, default=default, help=f"{what} (default {default})")
@@ -90,7 +95,8 @@ def build_parser() -> argparse.ArgumentParser:
 def anytime_settings(args: argparse.Namespace) -> AnytimeSettings:
     """The punctuations of the command line (each option range-checked by name)."""
     over: dict[str, Any] = {"method": args.method}
-    for flag in ("every", "top", "physics_starts", "physics_steps", "final_starts"):
+    for flag in ("every", "top", "physics_starts", "physics_steps", "final_starts", "neighbours",
+                 "descriptor_starts"):  # fmt: skip
         over[flag] = check_int(getattr(args, flag), "--" + flag.replace("_", "-"), lo=1)
     return dataclasses.replace(DEFAULTS, **over)
 
