@@ -47,7 +47,7 @@ class FloorError(InputError, ValueError):
     """Two matrices that are not the same runs under another noise draw; the message says why."""
 
 
-def _matrix(folder: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+def read_matrix(folder: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     """(robustness.json, settings.json) of a finished ``servobot robustness`` folder."""
     try:
         doc = json.loads((folder / "robustness.json").read_text())
@@ -77,7 +77,7 @@ def physics_floor(a: Path, b: Path) -> tuple[dict[str, dict[str, float]], list[G
     knew each start's mean physics outcome, were the runs normal about it (E|A − B| / √2);
     with the coverage genomes and their start poses. ``FloorError`` when
     the two are not the same chromosomes, starts and steps under different servo noise."""
-    (doc_a, rec_a), (doc_b, rec_b) = _matrix(a), _matrix(b)
+    (doc_a, rec_a), (doc_b, rec_b) = read_matrix(a), read_matrix(b)
     for key in ("starts", "steps", "start_poses"):
         if doc_a[key] != doc_b[key]:
             raise FloorError(f"{a} and {b} differ in {key}: the floor needs the same runs")

@@ -1,0 +1,184 @@
+"""Does a controller's behaviour in the table world predict its reality gap? The premise of the
+transferability approach (Koos, Mouret & Doncieux 2013; ``servobot anytime --method transfer``),
+checked on a physics matrix with many starts per controller.
+
+    python -m servobot.robustness.transfer MATRIX --table PATH [--envelope none|default|FILE]
+        [--seed 0] [--draws 16] [--descriptor-starts 4] [--neighbours 1 3 5]
+        [--out runs/transfer_check]
+
+MATRIX is a finished ``servobot robustness`` folder (e.g. ``OUT/matrix`` of
+``python -m servobot.robustness.measure``). For each coverage chromosome and physics world:
+its disparity d = table − physics, the mean inner squares (of 64) over the matrix's starts, the
+table side in the arm's own world (``ranking.table_runs``: ``--envelope``, ``--draws`` draws per
+start). Its behaviour is ``evolve.anytime.behaviour`` from ``--descriptor-starts`` fixed starts,
+the ones method transfer draws at ``--seed``. Controllers are grouped by population (a name
+``p{k}g…``, as ``measure`` names them; otherwise each is its own group), and each group's
+disparities are predicted from the other groups only: the k nearest behaviours' mean
+(``predict_disparity``), beside the other groups' plain mean. A predictor worth feeding back
+beats the plain mean and, subtracted from the table fitness, ranks the controllers closer to
+physics. Writes ``OUT/transfer.json`` and ``OUT/transfer.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.stats import spearmanr
+
+from evolve.anytime import behaviour, predict_disparity
+from evolve.envelope import load_envelope
+from evolve.evaluation import evaluate
+from evolve.population import stage_rng
+from evolve.settings import WorldSettings
+from evolve.starts import coverage_starts
+from evolve.table import load_table
+from infra.errors import InputError
+from infra.io import atomic_write_text
+from servobot.robustness.floor import FloorError, coverage_genomes, read_matrix
+from servobot.robustness.measure import physics_runs
+from servobot.robustness.ranking import table_runs
+
+PROG = "python -m servobot.robustness.transfer"
+POPULATION = re.compile(r"^p(\d+)g")
+"""A ``measure`` genome name: population k's genomes start ``p{k}g``."""
+
+
+def groups_of(names: list[str]) -> np.ndarray:
+    """(G,) group of each name: its population when every name is ``p{k}g…``, else its index."""
+    found = [POPULATION.match(n) for n in names]
+    if all(found):
+        return np.array([int(m.group(1)) for m in found])  # type: ignore[union-attr]
+    return np.arange(len(names))
+
+
+def held_out_predictions(
+    descriptors: np.ndarray, disparity: np.ndarray, groups: np.ndarray, k: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(kNN prediction, plain mean) of each disparity from the other groups only."""
+    knn, mean = np.zeros(len(disparity)), np.zeros(len(disparity))
+    for g in np.unique(groups):
+        mine = groups == g
+        if mine.all():
+            raise ValueError("one group only: nothing to predict it from")
+        knn[mine] = predict_disparity(descriptors[~mine], disparity[~mine], descriptors[mine], k)
+        mean[mine] = disparity[~mine].mean()
+    return knn, mean
+
+
+def _rho(a: np.ndarray, b: np.ndarray) -> float:
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 3 or np.ptp(a[ok]) == 0 or np.ptp(b[ok]) == 0:
+        return float("nan")
+    return float(spearmanr(a[ok], b[ok]).statistic)
+
+
+def transfer_check(
+    matrix: Path, *, table, envelope, seed: int, draws: int, descriptor_starts: int,
+    neighbours: list[int],
+) -> dict[str, Any]:  # fmt: skip
+    """Per world of ``matrix`` and each k of ``neighbours``: how well behaviour predicts the
+    held-out groups' disparities (module docstring)."""
+    doc, record = read_matrix(matrix)
+    genomes = coverage_genomes(record)
+    if len(genomes) < 3:
+        raise FloorError(f"{matrix}: {len(genomes)} coverage chromosomes; at least 3 needed")
+    names = [g.label for g in genomes]
+    groups = groups_of(names)
+    if len(np.unique(groups)) < 2:
+        raise FloorError(f"{matrix}: all chromosomes are of one population")
+    starts = np.asarray(doc["start_poses"]["coverage"], dtype=np.float64)
+    own = table_runs(genomes, starts, table=table, envelope=envelope, seed=seed, draws=draws,
+                     steps=doc["steps"]).mean(axis=1)  # fmt: skip
+    world = WorldSettings()
+    probe = coverage_starts(stage_rng(seed, "anytime", 2), descriptor_starts, world)
+    bits = np.stack([g.bits for g in genomes])
+    ev = evaluate(bits, probe, table=table, mode="coverage", max_steps=doc["steps"])
+    descriptors = behaviour(ev, world)
+    out: dict[str, Any] = {}
+    for w in (w["name"] for w in doc["worlds"]):
+        phys = np.nanmean(physics_runs(matrix, w, names, doc["starts"]), axis=1)
+        ok = np.isfinite(phys)
+        d = own[ok] - phys[ok]
+        rows = []
+        for k in neighbours:
+            knn, mean = held_out_predictions(descriptors[ok], d, groups[ok], k)
+            rows.append({
+                "neighbours": k,
+                "spearman_predicted_vs_disparity": _rho(knn, d),
+                "mean_abs_error": float(np.abs(knn - d).mean()),
+                "mean_abs_error_of_the_mean": float(np.abs(mean - d).mean()),
+                "spearman_table_vs_physics": _rho(own[ok], phys[ok]),
+                "spearman_corrected_vs_physics": _rho(own[ok] - knn, phys[ok]),
+            })  # fmt: skip
+        out[w] = {"chromosomes": int(ok.sum()), "groups": int(len(np.unique(groups[ok]))),
+                  "disparity_mean": float(d.mean()), "disparity_std": float(d.std()),
+                  "by_neighbours": rows}  # fmt: skip
+    return out
+
+
+def _markdown(doc: dict[str, Any]) -> str:
+    lines = [f"# Does behaviour predict the reality gap? {doc['matrix']}", "",
+             f"Table side: envelope {doc['envelope_name']} ({doc['draws']} draws per start); "
+             f"behaviour from {doc['descriptor_starts']} starts (seed {doc['seed']}); inner "
+             "squares of 64; each population predicted from the others.", "",
+             "| world | chromosomes (groups) | disparity mean ± std | k | Spearman predicted vs "
+             "disparity | mean abs error: kNN / others' mean | Spearman vs physics: table / "
+             "table − predicted |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for w, r in doc["worlds"].items():
+        for row in r["by_neighbours"]:
+            lines.append(
+                f"| {w} | {r['chromosomes']} ({r['groups']}) | {r['disparity_mean']:.1f} ± "
+                f"{r['disparity_std']:.1f} | {row['neighbours']} | "
+                f"{row['spearman_predicted_vs_disparity']:.2f} | {row['mean_abs_error']:.1f} / "
+                f"{row['mean_abs_error_of_the_mean']:.1f} | "
+                f"{row['spearman_table_vs_physics']:.2f} / "
+                f"{row['spearman_corrected_vs_physics']:.2f} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def _parser() -> argparse.ArgumentParser:
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = argparse.ArgumentParser(PROG, description=__doc__, formatter_class=fmt)
+    p.add_argument("matrix", type=Path, help="a finished `servobot robustness` folder")
+    p.add_argument("--table", default="paper", help="gait table of the table side (paper|PATH)")
+    p.add_argument("--envelope", default="none", help="the arm's own world: none|default|FILE")
+    p.add_argument("--seed", type=int, default=0, help="seed of the draws and behaviour starts")
+    p.add_argument("--draws", type=int, default=16, help="envelope draws per start (16)")
+    p.add_argument("--descriptor-starts", type=int, default=4, help="behaviour starts (4)")
+    p.add_argument("--neighbours", type=int, nargs="+", default=[1, 3, 5], help="k (1 3 5)")
+    p.add_argument("--out", type=Path, default=Path("runs/transfer_check"))
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = _parser()
+    a = p.parse_args(argv)
+    if a.descriptor_starts < 1 or min(a.neighbours) < 1 or a.draws < 1:
+        p.error("--descriptor-starts, --neighbours and --draws must be ≥ 1")
+    try:
+        worlds = transfer_check(
+            a.matrix, table=load_table(a.table), envelope=load_envelope(a.envelope), seed=a.seed,
+            draws=a.draws, descriptor_starts=a.descriptor_starts, neighbours=a.neighbours,
+        )  # fmt: skip
+    except (InputError, ValueError, FileNotFoundError) as exc:
+        print(f"{PROG}: {exc}", file=sys.stderr)
+        return 2
+    doc = {"matrix": str(a.matrix), "envelope_name": a.envelope, "draws": a.draws,
+           "seed": a.seed, "descriptor_starts": a.descriptor_starts, "worlds": worlds}  # fmt: skip
+    text = _markdown(doc)
+    a.out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(a.out / "transfer.json", json.dumps(doc, indent=1))
+    atomic_write_text(a.out / "transfer.md", text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
