@@ -151,6 +151,8 @@ def test_the_measurement_end_to_end_on_a_tiny_case(tmp_path: Path, capsys) -> No
         got = doc["agreement"]["top20"]["matched world"][world]["table_mean"]
         assert got == pytest.approx(want.mean())
     assert "| top20 | matched world | station-seen |" in (out / "ranking.md").read_text()
+    assert set(doc["by_population"]["top20"]) == {"shipped", "station-seen"}
+    assert doc["by_population"]["top20"]["shipped"]["populations"] == [0, 1]
     capsys.readouterr()
     assert measure.main(argv) == 0  # the physics cells are read back
     assert json.loads((out / "ranking.json").read_text()) == doc
@@ -180,3 +182,18 @@ def test_the_bests_alone_and_an_empty_sample(tmp_path: Path, capsys) -> None:
     assert doc["genomes"] == 4 and list(doc["agreement"]) == ["generation_bests"]
     names = sorted(p.stem for p in (tmp_path / "rank" / "genomes").glob("*.txt"))
     assert names == ["p0g0best", "p0g7best", "p1g0best", "p1g7best"]
+
+
+def test_agreement_by_population_by_hand():
+    """Population 0 is ranked backwards, 1 and 2 exactly; their means in the same order."""
+    table = np.array([1, 2, 3, 10, 20, 30, 5, 6, 7], dtype=float)[:, None]
+    physics = np.array([3, 2, 1, 10, 20, 30, 5, 6, 7], dtype=float)[:, None]
+    groups = ranking.groups_of([f"p{k}g512r{r}" for k in range(3) for r in range(3)])
+    assert groups.tolist() == [0, 0, 0, 1, 1, 1, 2, 2, 2]
+    by = ranking.population_agreement(table, physics, groups)
+    assert by["within_spearman"] == pytest.approx([-1.0, 1.0, 1.0])
+    assert by["within_spearman_mean"] == pytest.approx(1 / 3)
+    assert by["of_means_spearman"] == pytest.approx(1.0)
+    assert by["physics_means"] == [2.0, 20.0, 6.0]
+    assert ranking.groups_of(["p0g1best", "best_pop1"]).tolist() == [0, 1]  # not all: by index
+    assert math.isnan(ranking.rho(np.array([1.0, 2.0]), np.array([2.0, 1.0])))  # too few

@@ -42,7 +42,9 @@ from servobot.robustness.ranking import (
     RankingError,
     agreement,
     generation_bests,
+    groups_of,
     noise_ceiling,
+    population_agreement,
     seen,
     table_runs,
     top_genomes,
@@ -105,6 +107,15 @@ def _markdown(doc: dict[str, Any]) -> str:
                 lines.append(f"| {sample} | {side} | {w} | {a['spearman']:.2f} | "
                              f"{a['mean_abs_delta']:.1f} | {a['table_mean']:.1f} | "
                              f"{a['physics_mean']:.1f} |")  # fmt: skip
+    for sample, by in doc.get("by_population", {}).items():
+        lines += ["", f"## {sample}: by population (own world)", "",
+                  "| physics world | Spearman within each population | mean | of the populations' "
+                  "means | physics mean per population |", "|---|---|---|---|---|"]  # fmt: skip
+        for w, a in by.items():
+            within = ", ".join(f"{v:.2f}" for v in a["within_spearman"])
+            means = ", ".join(f"{v:.1f}" for v in a["physics_means"])
+            lines.append(f"| {w} | {within} | {a['within_spearman_mean']:.2f} | "
+                         f"{a['of_means_spearman']:.2f} | {means} |")  # fmt: skip
     if doc.get("tune"):
         lines += ["", "## Envelope scales scored on these physics runs (best 10)", "",
                   "| scatter | bias | reach | stops | Spearman (mean of worlds) | mean abs Δ |",
@@ -182,6 +193,9 @@ def main(argv: list[str] | None = None) -> int:
         matched = {w: table_runs(gs, starts, table=table, envelope=seen(envelope, w != WORLDS[0]),
                                  seed=a.seed, draws=a.draws, steps=a.steps)
                    for w in WORLDS}  # fmt: skip
+        out.setdefault("by_population", {})[sample] = {
+            w: population_agreement(own, phys[w], groups_of([g.label for g in gs])) for w in WORLDS
+        }
         out["agreement"][sample] = {
             "own world": {w: agreement(own, phys[w]) for w in WORLDS},
             "exact world": {w: agreement(exact, phys[w]) for w in WORLDS},

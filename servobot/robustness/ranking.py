@@ -14,6 +14,7 @@ import dataclasses
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.stats import spearmanr
@@ -156,14 +157,53 @@ def seen(envelope: Envelope, station_seen: bool) -> Envelope:
     return dataclasses.replace(envelope, station_seen_p=1.0 if station_seen else 0.0)
 
 
+def rho(a: np.ndarray, b: np.ndarray) -> float:
+    """Spearman of the finite pairs of ``a`` and ``b``; NaN with fewer than 3 or no spread."""
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 3 or np.ptp(a[ok]) == 0 or np.ptp(b[ok]) == 0:
+        return float("nan")
+    return float(spearmanr(a[ok], b[ok]).statistic)
+
+
+POPULATION = re.compile(r"^p(\d+)g")
+"""A sampled genome's label: population k's genomes start ``p{k}g`` (``top_genomes``,
+``generation_bests``)."""
+
+
+def groups_of(names: list[str]) -> np.ndarray:
+    """(G,) group of each name: its population when every name is ``p{k}g…``, else its index."""
+    found = [POPULATION.match(n) for n in names]
+    if all(found):
+        return np.array([int(m.group(1)) for m in found])  # type: ignore[union-attr]
+    return np.arange(len(names))
+
+
+def population_agreement(
+    table: np.ndarray, physics: np.ndarray, groups: np.ndarray
+) -> dict[str, Any]:
+    """Where a ranking's agreement comes from: Spearman within each population (its genomes'
+    mean fitness, table against physics) and over the populations' means."""
+    t, p = table.mean(axis=1), physics.mean(axis=1)
+    keys = np.unique(groups)
+    within = [rho(t[groups == k], p[groups == k]) for k in keys]
+    return {
+        "populations": keys.tolist(),
+        "within_spearman": within,
+        "within_spearman_mean": float(np.nanmean(within)) if np.isfinite(within).any()
+        else float("nan"),
+        "of_means_spearman": rho(np.array([t[groups == k].mean() for k in keys]),
+                                 np.array([p[groups == k].mean() for k in keys])),
+        "physics_means": [float(p[groups == k].mean()) for k in keys],
+    }  # fmt: skip
+
+
 def agreement(table: np.ndarray, physics: np.ndarray) -> dict[str, float]:
     """How table runs (G, S) predict physics runs (G, S) of the same genomes and starts:
     Spearman of the genomes' mean fitness, mean per-run |Δ inner squares|, and the mean
     fitness of each side (inner squares)."""
     t, p = table.mean(axis=1), physics.mean(axis=1)
-    rho = float(spearmanr(t, p).statistic) if np.ptp(t) > 0 and np.ptp(p) > 0 else float("nan")
     return {
-        "spearman": rho,
+        "spearman": rho(t, p),
         "mean_abs_delta": float(np.abs(table - physics).mean()),
         "table_mean": float(t.mean()),
         "physics_mean": float(p.mean()),

@@ -23,13 +23,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.stats import spearmanr
 
 from evolve.anytime import behaviour, predict_disparity
 from evolve.envelope import load_envelope
@@ -42,21 +40,9 @@ from infra.errors import InputError
 from infra.io import atomic_write_text
 from servobot.robustness.floor import FloorError, coverage_genomes, read_matrix
 from servobot.robustness.measure import physics_runs
-from servobot.robustness.ranking import table_runs
+from servobot.robustness.ranking import groups_of, rho, table_runs
 
 PROG = "python -m servobot.robustness.transfer"
-POPULATION = re.compile(r"^p(\d+)g")
-"""A ``measure`` genome name: population k's genomes start ``p{k}g``."""
-
-
-def groups_of(names: list[str]) -> np.ndarray:
-    """(G,) group of each name: its population when every name is ``p{k}g…``, else its index."""
-    found = [POPULATION.match(n) for n in names]
-    if all(found):
-        return np.array([int(m.group(1)) for m in found])  # type: ignore[union-attr]
-    return np.arange(len(names))
-
-
 def held_out_predictions(
     descriptors: np.ndarray, disparity: np.ndarray, groups: np.ndarray, k: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -69,13 +55,6 @@ def held_out_predictions(
         knn[mine] = predict_disparity(descriptors[~mine], disparity[~mine], descriptors[mine], k)
         mean[mine] = disparity[~mine].mean()
     return knn, mean
-
-
-def _rho(a: np.ndarray, b: np.ndarray) -> float:
-    ok = np.isfinite(a) & np.isfinite(b)
-    if ok.sum() < 3 or np.ptp(a[ok]) == 0 or np.ptp(b[ok]) == 0:
-        return float("nan")
-    return float(spearmanr(a[ok], b[ok]).statistic)
 
 
 def transfer_check(
@@ -110,11 +89,11 @@ def transfer_check(
             knn, mean = held_out_predictions(descriptors[ok], d, groups[ok], k)
             rows.append({
                 "neighbours": k,
-                "spearman_predicted_vs_disparity": _rho(knn, d),
+                "spearman_predicted_vs_disparity": rho(knn, d),
                 "mean_abs_error": float(np.abs(knn - d).mean()),
                 "mean_abs_error_of_the_mean": float(np.abs(mean - d).mean()),
-                "spearman_table_vs_physics": _rho(own[ok], phys[ok]),
-                "spearman_corrected_vs_physics": _rho(own[ok] - knn, phys[ok]),
+                "spearman_table_vs_physics": rho(own[ok], phys[ok]),
+                "spearman_corrected_vs_physics": rho(own[ok] - knn, phys[ok]),
             })  # fmt: skip
         out[w] = {"chromosomes": int(ok.sum()), "groups": int(len(np.unique(groups[ok]))),
                   "disparity_mean": float(d.mean()), "disparity_std": float(d.std()),
