@@ -17,7 +17,8 @@ each world against the envelope with the station block never (``shipped``) or al
 (``station-seen``) seen. Beside the agreement, its ceiling: the best any model reaches
 against one run of a world that varies as the envelope says (``ranking.noise_ceiling``: the
 arm's envelope, ``default`` for ``none``, against one draw of itself, the same genomes and
-starts). Writes
+starts), and where the agreement comes from (``ranking.population_agreement``: Spearman
+within each population and over the population means, the own world). Writes
 ``OUT/ranking.json`` and ``OUT/ranking.md``.
 """
 
