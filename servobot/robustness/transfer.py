@@ -43,6 +43,8 @@ from servobot.robustness.measure import physics_runs
 from servobot.robustness.ranking import groups_of, rho, table_runs
 
 PROG = "python -m servobot.robustness.transfer"
+
+
 def held_out_predictions(
     descriptors: np.ndarray, disparity: np.ndarray, groups: np.ndarray, k: int
 ) -> tuple[np.ndarray, np.ndarray]:
