@@ -486,7 +486,6 @@ def test_bench_numbers_on_hand_made_summaries():
     assert arms["bias"]["goal_met"] is True and arms["none"]["goal_met"] is None
 
 
-
 def test_bench_evolves_every_method_in_its_envelope(nav_file, tmp_path, monkeypatch):
     """``--envelope`` reaches every arm's run (``none`` first, the others against it); a bad
     envelope file is refused before anything runs."""

@@ -70,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
          "is predicted from, k"),
         ("--descriptor-starts", "descriptor_starts", "transfer: fixed starts a behaviour is "
          "described from"),
-    ):
+    ):  # fmt: skip
         default = getattr(DEFAULTS, field)
         p.add_argument(flag, type=int, default=default, help=f"{what} (default {default})")
     add_ga_options(p, "512")

@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--envelope", default="none", help="the arm's envelope (its own world)")
     p.add_argument("--table", default="paper")
     p.add_argument("--per-population", type=int, default=5,
-                   help="genomes per final population's top 20 %% (0: only --bests)")
+                   help="genomes per final population's top 20 %% (0: only --bests)")  # fmt: skip
     p.add_argument("--bests", action="store_true", help="also every saved generation's best")
     p.add_argument("--starts", type=int, default=4)
     p.add_argument("--steps", type=int, default=600, help="steps per run (SPEC §5: 600)")
