@@ -121,16 +121,24 @@ def _markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _parser() -> argparse.ArgumentParser:
+def table_side_parser(prog: str, doc: str | None, envelope: str) -> argparse.ArgumentParser:
+    """A parser with the table side's options of the matrix reports: ``--table``,
+    ``--envelope`` (default ``envelope``), ``--draws`` and ``--seed``."""
     fmt = argparse.RawDescriptionHelpFormatter
-    p = argparse.ArgumentParser(PROG, description=__doc__, formatter_class=fmt)
+    p = argparse.ArgumentParser(prog, description=doc, formatter_class=fmt)
+    p.add_argument("--table", default="paper", help="gait table of the table side (paper|PATH)")
+    p.add_argument("--envelope", default=envelope,
+                   help=f"the table world's variation: none|default|FILE ({envelope})")  # fmt: skip
+    p.add_argument("--draws", type=int, default=16, help="envelope draws per start (16)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the envelope's draws (0)")
+    return p
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = table_side_parser(PROG, __doc__, "default")
     p.add_argument("a", type=Path, help="a `servobot robustness` folder")
     p.add_argument("b", type=Path, help="the same runs under another --noise-seed")
-    p.add_argument("--table", default="paper", help="gait table of the table side (paper|PATH)")
-    p.add_argument("--envelope", default="default", help="the world's variation: none|default|FILE")
-    p.add_argument("--draws", type=int, default=16, help="envelope draws of the prediction (16)")
     p.add_argument("--realisations", type=int, default=4, help="single draws scored (4)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the envelope's draws (0)")
     p.add_argument("--out", type=Path, default=Path("runs/floor"))
     return p
 

@@ -38,7 +38,12 @@ from evolve.starts import coverage_starts
 from evolve.table import load_table
 from infra.errors import InputError
 from infra.io import atomic_write_text
-from servobot.robustness.floor import FloorError, coverage_genomes, read_matrix
+from servobot.robustness.floor import (
+    FloorError,
+    coverage_genomes,
+    read_matrix,
+    table_side_parser,
+)
 from servobot.robustness.measure import physics_runs
 from servobot.robustness.ranking import groups_of, rho, table_runs
 
@@ -125,13 +130,8 @@ def _markdown(doc: dict[str, Any]) -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    fmt = argparse.RawDescriptionHelpFormatter
-    p = argparse.ArgumentParser(PROG, description=__doc__, formatter_class=fmt)
+    p = table_side_parser(PROG, __doc__, "none")
     p.add_argument("matrix", type=Path, help="a finished `servobot robustness` folder")
-    p.add_argument("--table", default="paper", help="gait table of the table side (paper|PATH)")
-    p.add_argument("--envelope", default="none", help="the arm's own world: none|default|FILE")
-    p.add_argument("--seed", type=int, default=0, help="seed of the draws and behaviour starts")
-    p.add_argument("--draws", type=int, default=16, help="envelope draws per start (16)")
     p.add_argument("--descriptor-starts", type=int, default=4, help="behaviour starts (4)")
     p.add_argument("--neighbours", type=int, nargs="+", default=[1, 3, 5], help="k (1 3 5)")
     p.add_argument("--out", type=Path, default=Path("runs/transfer_check"))
