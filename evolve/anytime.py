@@ -747,7 +747,8 @@ def _in_force(
     """Each population's fitness in force: the table fitness, times its bias (method bias),
     or less its predicted disparity, not below 0 (method transfer, once a punctuation
     archived a behaviour)."""
-    archive, disparity = transfer_archive(records, upto)
+    if settings.method == "transfer":
+        archive, disparity = transfer_archive(records, upto)
     out = {}
     for r in active:
         f = evaluated[r.k].fitness

@@ -60,7 +60,7 @@ from evolve.population import (
     write_history,
 )
 from evolve.settings import GASettings, WorldSettings
-from evolve.stages import _populations_on
+from evolve.stages import populations_on
 from evolve.table import GaitTable
 from infra.executors import Executor
 
@@ -298,7 +298,7 @@ def run_teams(
         ]
     jobs = [PopulationJob(t, stage, folder, kwargs[t], threads, evolve_team)
             for t in range(ga.populations)]  # fmt: skip
-    return _populations_on(executor, jobs, on_generation, "team",
+    return populations_on(executor, jobs, on_generation, "team",
                            lambda res: res.history.mean(axis=1))  # fmt: skip
 
 

@@ -311,7 +311,7 @@ def _run_populations(
     else:
         threads = _kernel_threads(run.executor)
         jobs = [PopulationJob(k, stage, folder, kwargs[k], threads) for k in range(ga.populations)]
-        results = _populations_on(run.executor, jobs, run.on_generation)
+        results = populations_on(run.executor, jobs, run.on_generation)
     test_rng = np.random.Generator(np.random.PCG64(test_seq))
     test_starts = stage.starts(test_rng, ga.test_starts, world)
     return results, test_starts
@@ -326,7 +326,7 @@ def _kernel_threads(executor: Executor) -> int:
     return max(1, cores // (getattr(executor, "workers", None) or cores))
 
 
-def _populations_on(
+def populations_on(
     executor: Executor, jobs: list[PopulationJob], on_generation: OnGeneration | None,
     what: str = "population", rows: Callable[[Any], Any] = lambda res: res.history,
 ) -> list[Any]:
@@ -786,5 +786,6 @@ __all__ = [
     "stage_need",
     "stage_seeds",
     "stage_settings_doc",
+    "populations_on",
     "CHECKPOINT_EVERY",
 ]

@@ -194,8 +194,9 @@ def main(argv: list[str] | None = None) -> int:
         matched = {w: table_runs(gs, starts, table=table, envelope=seen(envelope, w != WORLDS[0]),
                                  seed=a.seed, draws=a.draws, steps=a.steps)
                    for w in WORLDS}  # fmt: skip
+        groups = groups_of([g.label for g in gs])
         out.setdefault("by_population", {})[sample] = {
-            w: population_agreement(own, phys[w], groups_of([g.label for g in gs])) for w in WORLDS
+            w: population_agreement(own, phys[w], groups) for w in WORLDS
         }
         out["agreement"][sample] = {
             "own world": {w: agreement(own, phys[w]) for w in WORLDS},
