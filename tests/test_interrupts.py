@@ -3,6 +3,7 @@ recordings that an interrupted or failed run must not leave at their final path.
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -20,6 +21,7 @@ from evolve.table import PAPER_TABLE
 from infra.io import OutputError
 from servo_mj.world import physics_world
 from servobot.cli import main as servobot
+from servobot.cli.runner import Interrupted, run_command
 from servobot.recording import Recording
 from servobot.validation import lone as validation
 
@@ -62,6 +64,78 @@ def test_ctrl_c_keeps_checkpoints_and_resume_is_bit_identical(tmp_path, capsys):
     assert servobot(["evolve", *args, "--out", str(cut), "--resume"]) == 0
     assert servobot(["evolve", *args, "--out", str(tmp_path / "ref")]) == 0
     assert _files(cut) == _files(tmp_path / "ref")
+
+
+@pytest.fixture
+def ctrl_c_raises():
+    """SIGINT raises KeyboardInterrupt in this process while the test runs (as in a terminal,
+    even where the suite runs as a background job that ignores it)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+NOTE = lambda: Interrupted("nothing", "servobot x --again")  # noqa: E731
+
+
+def test_an_interrupt_a_library_turned_into_another_error_still_ends_as_interrupted(
+    ctrl_c_raises, capsys
+):
+    def body() -> int:  # numpy's structured np.unique makes a Ctrl-C a TypeError
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            raise TypeError("Cannot compare structured arrays") from None
+        return 0
+
+    assert run_command("servobot x", body, NOTE) == 130
+    assert "interrupted; kept: nothing" in capsys.readouterr().err
+
+
+def test_a_swallowed_interrupt_is_delivered_again(ctrl_c_raises, capsys):
+    class Swallowed:  # an exception in __del__ cannot be raised: Python prints "ignored"
+        def __del__(self) -> None:
+            signal.raise_signal(signal.SIGINT)
+
+    def body() -> int:
+        Swallowed()
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:  # a numba compile going on after the callback
+            pass
+        return 0
+
+    t0 = time.monotonic()
+    assert run_command("servobot x", body, NOTE) == 130
+    assert time.monotonic() - t0 < 10
+    assert "Exception ignored" not in capsys.readouterr().err
+
+
+def test_ctrl_c_ignored_from_birth_stays_ignored():
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a background job
+    try:
+        seen = []
+        assert run_command("servobot x", lambda: seen.append(signal.getsignal(2)), NOTE) == 0
+        assert seen == [signal.SIG_IGN] and signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def test_an_interrupt_escaping_exec_of_source_does_not_kill_the_process_at_exit(tmp_path):
+    """CPython notes a KeyboardInterrupt that escapes exec() of source text (numba compiles
+    so) and kills itself with SIGINT at exit even though the command handled it: exit -2."""
+    (tmp_path / "interrupted_in_exec.py").write_text(
+        "import sys\n"
+        "from servobot.cli.runner import Interrupted, run_command\n"
+        "body = lambda: exec('import signal; signal.raise_signal(signal.SIGINT)')\n"
+        "sys.exit(run_command('servobot x', body, lambda: Interrupted('nothing', 'again')))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-m", "interrupted_in_exec"], cwd=tmp_path, capture_output=True,
+        text=True, env={**os.environ, "PYTHONPATH": str(ROOT)},
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
+    assert proc.returncode == 130, proc.stderr
+    assert "servobot x: interrupted; kept: nothing; resume with: again" in proc.stderr
 
 
 def test_ctrl_c_stops_parallel_validation_without_partial_recordings(tmp_path):
