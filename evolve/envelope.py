@@ -88,11 +88,13 @@ class Envelope:
     reach_units: float = 0.0
     """Sensor reach, units: each robot's object-sensor activation distance is drawn per run
     uniformly in [object_range − this, object_range + this] (walls, robots and the block)."""
-    station_stops: bool = False
-    """[chosen] Whether a seen station block also stops motion: a move that would bring the
-    centre closer than the robot radius to the block (and closer than before) is cancelled;
-    the step still counts and costs power, as a colony's cancelled move. False until measured
-    against physics."""
+    station_stops: bool | str = False
+    """[chosen] Whether the station block stops motion: a move that would bring the centre
+    closer than the robot radius to the block (and closer than before) is cancelled; the step
+    still counts and costs power, as a colony's cancelled move. ``False``: never; ``True``:
+    in the runs whose block is seen; ``"always"``: in every run, seen or not, as in both
+    physics worlds of SPEC §9, whose station is the same block, tall enough for the
+    rangefinders in ``station-seen`` and too low in ``shipped`` (``STOPS_ALWAYS``)."""
 
     warmup_fraction: float = 0.0
     """[chosen] Incremental evolution: the first ``round(warmup_fraction × generations)``
@@ -137,9 +139,12 @@ class Envelope:
         if self.station_seen_p > 1.0:
             raise EnvelopeError(f"station_seen_p must be a probability in [0, 1], got "
                                 f"{self.station_seen_p!r}")  # fmt: skip
-        for name in ("station_stops", "station_strata"):
-            if not isinstance(getattr(self, name), bool):
-                raise EnvelopeError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        if not isinstance(self.station_strata, bool):
+            raise EnvelopeError(f"station_strata must be true or false, got "
+                                f"{self.station_strata!r}")  # fmt: skip
+        if not (isinstance(self.station_stops, bool) or self.station_stops == STOPS_ALWAYS):
+            raise EnvelopeError(f"station_stops must be true, false or \"always\", got "
+                                f"{self.station_stops!r}")  # fmt: skip
         if self.draw_fitness not in DRAW_FITNESS:
             raise EnvelopeError(f"draw_fitness must be one of {', '.join(DRAW_FITNESS)}, got "
                                 f"{self.draw_fitness!r}")  # fmt: skip
@@ -207,6 +212,8 @@ TRAINING_DEFAULTS = {
 """How training samples an envelope, at their defaults (left out of ``to_dict``)."""
 DRAW_FITNESS = ("mean", "min")
 """How a start's training draws combine (``Envelope.draw_fitness``)."""
+STOPS_ALWAYS = "always"
+"""``Envelope.station_stops``: the block stops motion in every run, seen or not."""
 NONE = Envelope()
 """The world of §3: no variation."""
 DEFAULT = Envelope(
@@ -284,6 +291,7 @@ __all__ = [
     "ROBOT_RADIUS",
     "SHIPPED_STD",
     "STATION_DEPTH",
+    "STOPS_ALWAYS",
     "TEST_IDS",
     "Envelope",
     "EnvelopeError",

@@ -212,9 +212,10 @@ def _walk(
 
 @njit(cache=True, inline="always")
 def _run_env(env, seen):
-    """(scatter scale, whether a seen block stops, x0, y0, x1, y1, radius) of a run from the
-    packed envelope ``env`` (``evolve.variation.E_*``): scalars that ``_walk`` reads."""
-    stops = seen and env[E_STOPS] > 0.0
+    """(scatter scale, whether the block stops, x0, y0, x1, y1, radius) of a run from the
+    packed envelope ``env`` (``evolve.variation.E_*``): scalars that ``_walk`` reads. The block
+    stops when ``E_STOPS`` is 2 (in every run) or 1 and the run sees it."""
+    stops = env[E_STOPS] > 1.5 or (seen and env[E_STOPS] > 0.0)
     return env[E_SCATTER], stops, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1], env[E_RADIUS]
 
 

@@ -32,7 +32,14 @@ from numba.extending import register_jitable
 
 from evolve import geometry as geo
 from evolve.draws import absorb, fold, normal3, unit
-from evolve.envelope import NONE, Envelope, EnvelopeError, envelope_sigma, station_block
+from evolve.envelope import (
+    NONE,
+    STOPS_ALWAYS,
+    Envelope,
+    EnvelopeError,
+    envelope_sigma,
+    station_block,
+)
 from evolve.settings import WorldSettings
 from evolve.table import N_GAITS, validate_table
 
@@ -40,9 +47,11 @@ STREAM_SCATTER, STREAM_BIAS, STREAM_REACH, STREAM_STATION = 1, 2, 3, 4
 """Stream tags: what a draw of a run is for."""
 E_SCATTER, E_STOPS, E_X0, E_Y0, E_X1, E_Y1, E_RADIUS = range(7)
 """Layout of the packed envelope vector the kernels read (``Variation.packed``): the scatter
-scale, 1.0 when a seen block stops motion, the block's box (units) and the robot radius
-(units) that the block stops."""
+scale, when the block stops motion (``_STOPS_CODE``), the block's box (units) and the robot
+radius (units) that the block stops."""
 E_SIZE = 7
+_STOPS_CODE = {False: 0.0, True: 1.0, STOPS_ALWAYS: 2.0}
+"""``E_STOPS`` of ``Envelope.station_stops``: never, when the block is seen, in every run."""
 
 
 @register_jitable
@@ -167,7 +176,7 @@ class Variation:
         """The ``E_*`` vector the kernels read."""
         out = np.zeros(E_SIZE)
         out[E_SCATTER] = self.envelope.scatter_scale
-        out[E_STOPS] = 1.0 if self.envelope.station_stops else 0.0
+        out[E_STOPS] = _STOPS_CODE[self.envelope.station_stops]
         out[E_X0], out[E_Y0], out[E_X1], out[E_Y1] = self.block
         out[E_RADIUS] = self.radius
         return out
@@ -216,7 +225,9 @@ class RobotRun:
         self.key = d.scatter_key
         self.scale = variation.envelope.scatter_scale
         self.block = variation.block if seen else None
-        self.stops = seen and variation.envelope.station_stops
+        stops = variation.envelope.station_stops
+        self.stops = stops == STOPS_ALWAYS or (seen and stops is True)
+        self.stop_block = variation.block
         self.radius = variation.radius
 
     def row(self, gait: int) -> tuple[float, float, float]:
@@ -230,7 +241,7 @@ class RobotRun:
 
     def stopped(self, x: float, y: float, nx: float, ny: float) -> bool:
         """Whether the station block cancels the move from (x, y) to (nx, ny)."""
-        return self.stops and geo.block_stops(x, y, nx, ny, *self.block, self.radius)
+        return self.stops and geo.block_stops(x, y, nx, ny, *self.stop_block, self.radius)
 
     def object_bits(self, x: float, y: float, h: float) -> int:
         """Object-sensor bits of the walls and the station block at (x, y, h)."""

@@ -55,6 +55,10 @@ EVERYTHING = Envelope(
 """Every aspect on, the station block stopping motion."""
 LOUD = Envelope(scatter_scale=2.5, bias_scale=1.5, station_seen_p=0.8, reach_units=12.0)
 """Larger scales, a block that is only seen."""
+IN_THE_WAY = Envelope(
+    scatter_scale=1.0, station_seen_p=0.5, reach_units=5.0, station_stops="always"
+)
+"""The block seen in half the runs and in the way in every run, as in physics."""
 KEY = (7, 3)
 SCATTER_ONLY = Envelope(scatter_scale=1.0)
 BIAS_ONLY = Envelope(bias_scale=1.0)
@@ -148,7 +152,9 @@ def test_none_is_the_stored_pre_envelope_world_in_the_interpreter(work):
 # --------------------------------------------------------------------------- kernel = interpreter
 
 
-@pytest.mark.parametrize("envelope", [EVERYTHING, LOUD], ids=["everything", "loud"])
+@pytest.mark.parametrize(
+    "envelope", [EVERYTHING, LOUD, IN_THE_WAY], ids=["everything", "loud", "in the way"]
+)
 def test_lone_kernel_equals_interpreter_in_an_envelope(work, envelope):
     g, st = work.coverage[:300], work.coverage_starts
     ev = evaluate(g, st, table=PAPER_TABLE, mode="coverage", start_power=START_POWER,
@@ -157,7 +163,7 @@ def test_lone_kernel_equals_interpreter_in_an_envelope(work, envelope):
                                      envelope=envelope, envelope_key=KEY)  # fmt: skip
     _assert_lone_equal(ev, ref)
     assert ev.docks.sum() > 20
-    assert (blocked > 100) == envelope.station_stops  # the block stops moves only if it stops
+    assert (blocked > 100) == bool(envelope.station_stops)  # only a block that stops stops
     nav = work.navigation[:400]
     ev = evaluate(nav, work.navigation_starts, table=PAPER_TABLE, mode="navigation",
                   envelope=envelope, envelope_key=KEY)  # fmt: skip
@@ -167,7 +173,9 @@ def test_lone_kernel_equals_interpreter_in_an_envelope(work, envelope):
     assert set(np.unique(ev.end).tolist()) == {0, 1, 2, 3, 4}
 
 
-@pytest.mark.parametrize("envelope", [EVERYTHING, LOUD], ids=["everything", "loud"])
+@pytest.mark.parametrize(
+    "envelope", [EVERYTHING, LOUD, IN_THE_WAY], ids=["everything", "loud", "in the way"]
+)
 def test_colony_kernel_equals_interpreter_in_an_envelope(work, envelope):
     g, st = work.colony[:120], work.colony_starts
     ev = evaluate_colony(g, st, table=PAPER_TABLE, mode="coverage", start_power=START_POWER,
@@ -388,6 +396,23 @@ def test_station_stops_cancels_a_move_into_the_block():
     assert (plain.end[0, 0], plain.steps[0, 0]) == (END_KILL_ZONE, 2)  # walked into the wall
 
 
+def test_a_block_always_in_the_way_stops_unseen_and_stays_unseen():
+    """``station_stops = "always"``: the block of an unseen station still stops a move (the
+    low block of physics' ``shipped``), and the object sensors still do not see it."""
+    pose = (460.0, 250.0, 90.0)
+    unseen = Envelope(station_seen_p=0.0, station_stops="always")
+    world = TableWorld(PAPER_TABLE, *pose, envelope=unseen)
+    assert world.step(0) is True and world.pose() == pose
+    far = (station_block(WORLD)[0] - 49.0, 250.0, 90.0)  # the seen block is in reach here
+    assert TableWorld(PAPER_TABLE, *far, envelope=unseen).object_sensors() == (False, False)
+    when_seen = TableWorld(PAPER_TABLE, *pose, envelope=Envelope(station_stops=True))
+    assert when_seen.step(0) is False and when_seen.pose()[0] > 470.0
+    walk = chrom(gene("00", G(0), G(0), G(0), G(0)))
+    ev = evaluate(walk[None], np.array([pose] * 3), table=PAPER_TABLE, mode="coverage",
+                  max_steps=3, start_power=2.75, envelope=unseen)  # fmt: skip
+    assert (ev.end[:, 0] == END_POWER_EMPTY).all() and (ev.final_pose[:, 0] == pose).all()
+
+
 # --------------------------------------------------------------------------- inputs
 
 
@@ -397,6 +422,10 @@ def test_named_and_file_envelopes_load(tmp_path):
     path.write_text(json.dumps({"scatter_scale": 2, "station_stops": True}))
     env = load_envelope(path)
     assert env == Envelope(scatter_scale=2.0, station_stops=True)
+    assert Envelope.from_dict(json.loads(env.to_json())) == env
+    path.write_text(json.dumps({"station_seen_p": 0.5, "station_stops": "always"}))
+    env = load_envelope(path)
+    assert env.station_stops == "always" and env.varies
     assert Envelope.from_dict(json.loads(env.to_json())) == env
     assert not NONE.varies and DEFAULT.varies and DEFAULT.scatter_scale == 1.0
 
@@ -408,7 +437,8 @@ def test_named_and_file_envelopes_load(tmp_path):
         ({"bias_scale": "big"}, "bias_scale must be a finite number"),
         ({"station_seen_p": 1.5}, "station_seen_p must be a probability"),
         ({"reach_units": True}, "reach_units must be a finite number"),
-        ({"station_stops": 1}, "station_stops must be true or false"),
+        ({"station_stops": 1}, 'station_stops must be true, false or "always"'),
+        ({"station_stops": "sometimes"}, 'station_stops must be true, false or "always"'),
         ({"draws_per_start": 1.5}, "draws_per_start must be an integer ≥ 1"),
         ({"warmup_fraction": -0.1}, "warmup_fraction must be ≥ 0"),
         ({"station_strata": "yes"}, "station_strata must be true or false"),
