@@ -250,6 +250,15 @@ def atomic_write_json(path: str | Path, obj: Any) -> Path:
     return atomic_write_text(path, json.dumps(obj, indent=2) + "\n")
 
 
+def write_report(folder: Path, name: str, doc: Any, text: str) -> None:
+    """A report pair in ``folder`` (created if needed): ``NAME.json`` (``doc``) and ``NAME.md``
+    (``text``), each written atomically; then ``text`` on stdout."""
+    folder.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(folder / f"{name}.json", json.dumps(doc, indent=1))
+    atomic_write_text(folder / f"{name}.md", text)
+    print(text)
+
+
 # --------------------------------------------------------------------------- output places
 
 
@@ -351,6 +360,7 @@ __all__ = [
     "decode_text",
     "forget_created_folders",
     "held_signals",
+    "write_report",
     "parse_json",
     "partial_path",
     "read_bytes",

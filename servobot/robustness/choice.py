@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from infra.io import atomic_write_text
+from infra.io import write_report
 from servobot.robustness.floor import FloorError, read_matrix
 
 PROG = "python -m servobot.robustness.choice"
@@ -161,11 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     except (FloorError, OSError, ValueError, KeyError) as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 2
-    text = _markdown(doc)
-    a.out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(a.out / "choice.json", json.dumps(doc, indent=1))
-    atomic_write_text(a.out / "choice.md", text)
-    print(text)
+    write_report(a.out, "choice", doc, _markdown(doc))
     return 0
 
 

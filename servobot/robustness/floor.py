@@ -34,7 +34,7 @@ from evolve.codec import FULL_GENES, parse_chromosome
 from evolve.envelope import load_envelope
 from evolve.table import load_table
 from infra.errors import InputError
-from infra.io import atomic_write_text
+from infra.io import write_report
 from servobot.robustness.measure import physics_runs
 from servobot.robustness.ranking import Genome, agreement, noise_ceiling, seen
 
@@ -160,11 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     except (InputError, ValueError, FileNotFoundError) as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 2
-    text = _markdown(doc)
-    a.out.mkdir(parents=True, exist_ok=True)
-    for name, body in (("floor.json", json.dumps(doc, indent=1)), ("floor.md", text)):
-        atomic_write_text(a.out / name, body)
-    print(text)
+    write_report(a.out, "floor", doc, _markdown(doc))
     return 0
 
 

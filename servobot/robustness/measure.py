@@ -36,7 +36,7 @@ import numpy as np
 from evolve.codec import format_chromosome
 from evolve.envelope import DEFAULT, NONE, Envelope, load_envelope
 from evolve.table import load_table
-from infra.io import atomic_write_text
+from infra.io import write_report
 from servobot.progress import RunBar, progress_bar
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
 from servobot.robustness.ranking import (
@@ -213,9 +213,7 @@ def main(argv: list[str] | None = None) -> int:
         out["default_rank"] = next(
             i for i, r in enumerate(out["tune"]) if r["envelope"] == DEFAULT.to_dict()
         )
-    atomic_write_text(a.out / "ranking.json", json.dumps(out, indent=1))
-    atomic_write_text(a.out / "ranking.md", _markdown(out))
-    print(_markdown(out))
+    write_report(a.out, "ranking", out, _markdown(out))
     return 0
 
 

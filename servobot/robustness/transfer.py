@@ -22,7 +22,6 @@ physics. Writes ``OUT/transfer.json`` and ``OUT/transfer.md``.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -37,7 +36,7 @@ from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
 from evolve.table import load_table
 from infra.errors import InputError
-from infra.io import atomic_write_text
+from infra.io import write_report
 from servobot.robustness.floor import (
     FloorError,
     coverage_genomes,
@@ -153,11 +152,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     doc = {"matrix": str(a.matrix), "envelope_name": a.envelope, "draws": a.draws,
            "seed": a.seed, "descriptor_starts": a.descriptor_starts, "worlds": worlds}  # fmt: skip
-    text = _markdown(doc)
-    a.out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(a.out / "transfer.json", json.dumps(doc, indent=1))
-    atomic_write_text(a.out / "transfer.md", text)
-    print(text)
+    write_report(a.out, "transfer", doc, _markdown(doc))
     return 0
 
 
