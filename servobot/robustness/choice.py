@@ -28,8 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from infra.io import write_report
-from servobot.robustness.floor import FloorError, read_matrix
+from servobot.robustness.floor import FloorError, read_matrix, report_main
 
 PROG = "python -m servobot.robustness.choice"
 NAME = re.compile(r"^p(\d+)g(\d+)r(\d+)$")
@@ -156,13 +155,9 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     if min(a.candidates) < 1:
         p.error("--candidates must be ≥ 1")
-    try:
-        doc = choice_report(a.matrix, a.candidates, a.selection_worlds)
-    except (FloorError, OSError, ValueError, KeyError) as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
-    write_report(a.out, "choice", doc, _markdown(doc))
-    return 0
+    return report_main(PROG, a.out, "choice",
+                       lambda: choice_report(a.matrix, a.candidates, a.selection_worlds),
+                       _markdown)  # fmt: skip
 
 
 if __name__ == "__main__":

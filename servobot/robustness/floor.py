@@ -25,6 +25,7 @@ import argparse
 import json
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -143,12 +144,29 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def report_main(
+    prog: str, out: Path, name: str, make: Callable[[], dict[str, Any]],
+    markdown: Callable[[dict[str, Any]], str],
+) -> int:  # fmt: skip
+    """An analysis command's ending: ``make()`` the report and ``write_report`` it as
+    ``out/NAME.json`` and ``out/NAME.md`` (0), or say why it cannot be made (2: an input that
+    does not fit, a missing or unreadable file)."""
+    try:
+        doc = make()
+    except (InputError, ValueError, KeyError, OSError) as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+    write_report(out, name, doc, markdown(doc))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     a = _parser().parse_args(argv)
-    try:
+
+    def make() -> dict[str, Any]:
         envelope, table = load_envelope(a.envelope), load_table(a.table)
         physics, genomes, starts = physics_floor(a.a, a.b)
-        doc = {
+        return {
             "a": str(a.a), "b": str(a.b), "chromosomes": len(genomes), "starts": len(starts),
             "envelope_name": a.envelope, "envelope": envelope.to_dict(), "draws": a.draws,
             "realisations": a.realisations, "physics": physics,
@@ -157,11 +175,8 @@ def main(argv: list[str] | None = None) -> int:
                                        draws=a.draws, realisations=a.realisations)
                       for w in physics},
         }  # fmt: skip
-    except (InputError, ValueError, FileNotFoundError) as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
-    write_report(a.out, "floor", doc, _markdown(doc))
-    return 0
+
+    return report_main(PROG, a.out, "floor", make, _markdown)
 
 
 if __name__ == "__main__":

@@ -35,12 +35,11 @@ from evolve.population import stage_rng
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
 from evolve.table import load_table
-from infra.errors import InputError
-from infra.io import write_report
 from servobot.robustness.floor import (
     FloorError,
     coverage_genomes,
     read_matrix,
+    report_main,
     table_side_parser,
 )
 from servobot.robustness.measure import physics_runs
@@ -142,18 +141,17 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     if a.descriptor_starts < 1 or min(a.neighbours) < 1 or a.draws < 1:
         p.error("--descriptor-starts, --neighbours and --draws must be ≥ 1")
-    try:
+
+    def make() -> dict[str, Any]:
         worlds = transfer_check(
             a.matrix, table=load_table(a.table), envelope=load_envelope(a.envelope), seed=a.seed,
             draws=a.draws, descriptor_starts=a.descriptor_starts, neighbours=a.neighbours,
         )  # fmt: skip
-    except (InputError, ValueError, FileNotFoundError) as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
-    doc = {"matrix": str(a.matrix), "envelope_name": a.envelope, "draws": a.draws,
-           "seed": a.seed, "descriptor_starts": a.descriptor_starts, "worlds": worlds}  # fmt: skip
-    write_report(a.out, "transfer", doc, _markdown(doc))
-    return 0
+        return {"matrix": str(a.matrix), "envelope_name": a.envelope, "draws": a.draws,
+                "seed": a.seed, "descriptor_starts": a.descriptor_starts,
+                "worlds": worlds}  # fmt: skip
+
+    return report_main(PROG, a.out, "transfer", make, _markdown)
 
 
 if __name__ == "__main__":
