@@ -19,7 +19,6 @@ runs beats the GA's on the held-out half. Writes ``OUT/choice.json`` and ``OUT/c
 from __future__ import annotations
 
 import argparse
-import json
 import re
 import sys
 from collections import Counter
@@ -28,7 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from evolve.settings import WorldSettings
 from servobot.robustness.floor import FloorError, read_matrix, report_main
+from servobot.robustness.measure import cell_runs, inner_squares
 
 PROG = "python -m servobot.robustness.choice"
 NAME = re.compile(r"^p(\d+)g(\d+)r(\d+)$")
@@ -61,11 +62,6 @@ def held_out_choice(
                     out[c][w].append(runs[g, ~pick].mean())
                 out["candidates"][w].append(runs[cand][:, ~pick].mean())
     return {c: {w: float(np.mean(v)) for w, v in ws.items()} for c, ws in out.items()}
-
-
-def _reports(matrix: Path, world: str, names: list[str]) -> list[list[dict[str, Any]]]:
-    return [json.loads((matrix / "runs" / world / n / "report.json").read_text())["runs"]
-            for n in names]  # fmt: skip
 
 
 def ends(runs: list[list[dict[str, Any]]]) -> dict[str, Any]:
@@ -102,19 +98,12 @@ def choice_report(
     populations: dict[int, list[int]] = {}
     for i in order:
         populations.setdefault(keys[i][0], []).append(i)
-    reports = {w: _reports(matrix, w, names) for w in worlds}
-
-    def inner(w: str, side: str) -> np.ndarray:
-        out = np.full((len(names), doc["starts"]), np.nan)
-        for g, cell in enumerate(reports[w]):
-            for r in cell:
-                if r[side] is not None:
-                    out[g, r["index"]] = r[side]["inner_squares"]
-        return out / 64 * 100
-
-    physics = {w: inner(w, "physics") for w in worlds}
-    by_k = {k: held_out_choice(physics, inner(worlds[0], "table"), list(populations.values()),
-                               k, selection_worlds) for k in candidates}  # fmt: skip
+    reports = {w: cell_runs(matrix, w, names) for w in worlds}
+    percent = 100.0 / WorldSettings().inner_square_count
+    physics = {w: inner_squares(reports[w], doc["starts"], "physics") * percent for w in worlds}
+    table = inner_squares(reports[worlds[0]], doc["starts"], "table") * percent
+    by_k = {k: held_out_choice(physics, table, list(populations.values()), k, selection_worlds)
+            for k in candidates}  # fmt: skip
     return {"matrix": str(matrix), "starts": doc["starts"], "genomes": len(names),
             "populations": len(populations), "selection_worlds": selection_worlds,
             "by_candidates": by_k, "ends": {w: ends(reports[w]) for w in worlds}}  # fmt: skip

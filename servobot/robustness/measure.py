@@ -62,15 +62,26 @@ TUNE_GRID = {
 """The envelope scales ``--tune`` tries (every combination)."""
 
 
+def cell_runs(matrix: Path, world: str, names: list[str]) -> list[list[dict[str, Any]]]:
+    """The runs (``report.json``'s ``runs``) of each named genome's cell in ``world``."""
+    return [json.loads((matrix / "runs" / world / n / "report.json").read_text())["runs"]
+            for n in names]  # fmt: skip
+
+
+def inner_squares(cells: list[list[dict[str, Any]]], starts: int, side: str) -> np.ndarray:
+    """(G, S) inner squares of each cell's runs on ``side`` ("physics" or "table"; NaN where
+    that side has no result, a physics error)."""
+    out = np.full((len(cells), starts), np.nan)
+    for g, runs in enumerate(cells):
+        for r in runs:
+            if r[side] is not None:
+                out[g, r["index"]] = r[side]["inner_squares"]
+    return out
+
+
 def physics_runs(matrix: Path, world: str, names: list[str], starts: int) -> np.ndarray:
     """(G, S) physics inner squares of each genome's cell in ``world`` (NaN: a physics error)."""
-    out = np.full((len(names), starts), np.nan)
-    for g, name in enumerate(names):
-        rep = json.loads((matrix / "runs" / world / name / "report.json").read_text())
-        for r in rep["runs"]:
-            if r["physics"] is not None:
-                out[g, r["index"]] = r["physics"]["inner_squares"]
-    return out
+    return inner_squares(cell_runs(matrix, world, names), starts, "physics")
 
 
 def _score(tab: dict[str, np.ndarray], phys: dict[str, np.ndarray]) -> dict[str, Any]:
