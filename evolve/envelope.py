@@ -95,6 +95,12 @@ class Envelope:
     in the runs whose block is seen; ``"always"``: in every run, seen or not, as in both
     physics worlds of SPEC §9, whose station is the same block, tall enough for the
     rangefinders in ``station-seen`` and too low in ``shipped`` (``STOPS_ALWAYS``)."""
+    unseen_stops_p: float = 0.0
+    """[chosen] With ``station_stops`` true: the probability (0–1) that the block stops motion
+    in a run that does not see it too, drawn once per run (one for a colony). Between ``True``
+    (0) and ``"always"`` (1): a controller cannot tell an unseen block that stops from no block
+    at all, so it must dock in both the world of §3 and the physics worlds, where the block
+    always stops."""
 
     warmup_fraction: float = 0.0
     """[chosen] Incremental evolution: the first ``round(warmup_fraction × generations)``
@@ -145,6 +151,13 @@ class Envelope:
         if not (isinstance(self.station_stops, bool) or self.station_stops == STOPS_ALWAYS):
             raise EnvelopeError(f"station_stops must be true, false or \"always\", got "
                                 f"{self.station_stops!r}")  # fmt: skip
+        p = self.unseen_stops_p
+        if isinstance(p, bool) or not isinstance(p, int | float) or not 0.0 <= p <= 1.0:
+            raise EnvelopeError(f"unseen_stops_p must be a probability in [0, 1], got {p!r}")
+        object.__setattr__(self, "unseen_stops_p", float(p))
+        if p > 0.0 and self.station_stops is not True:
+            raise EnvelopeError(f"unseen_stops_p {p:g} needs station_stops true (it is "
+                                f"{self.station_stops!r})")  # fmt: skip
         if self.draw_fitness not in DRAW_FITNESS:
             raise EnvelopeError(f"draw_fitness must be one of {', '.join(DRAW_FITNESS)}, got "
                                 f"{self.draw_fitness!r}")  # fmt: skip
@@ -178,11 +191,11 @@ class Envelope:
         return round(self.warmup_fraction * generations)
 
     def to_dict(self) -> dict[str, Any]:
-        """The fields, the training ones (``TRAINING_DEFAULTS``) only where they are not their
+        """The fields, those added later (``LATER_DEFAULTS``) only where they are not their
         defaults: an envelope recorded before they existed reads back, and is recorded, as
         it was (run folders made then still resume)."""
         doc = dataclasses.asdict(self)
-        return {k: v for k, v in doc.items() if TRAINING_DEFAULTS.get(k, object()) != v}
+        return {k: v for k, v in doc.items() if LATER_DEFAULTS.get(k, object()) != v}
 
     def to_json(self) -> str:
         """The envelope as a JSON object of its fields (what ``load_envelope`` reads)."""
@@ -209,7 +222,10 @@ class Envelope:
 TRAINING_DEFAULTS = {
     "warmup_fraction": 0.0, "draws_per_start": 1, "station_strata": False, "draw_fitness": "mean",
 }  # fmt: skip
-"""How training samples an envelope, at their defaults (left out of ``to_dict``)."""
+"""How training samples an envelope, at their defaults."""
+LATER_DEFAULTS = {**TRAINING_DEFAULTS, "unseen_stops_p": 0.0}
+"""Fields added after the first envelopes were recorded, at their defaults (left out of
+``to_dict``)."""
 DRAW_FITNESS = ("mean", "min")
 """How a start's training draws combine (``Envelope.draw_fitness``)."""
 STOPS_ALWAYS = "always"

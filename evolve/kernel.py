@@ -91,7 +91,17 @@ from evolve.interpreter import (
     END_STEP_LIMIT,
 )
 from evolve.settings import BLOCKING_RULES
-from evolve.variation import E_RADIUS, E_SCATTER, E_STOPS, E_X0, E_X1, E_Y0, E_Y1, scattered_row
+from evolve.variation import (
+    E_RADIUS,
+    E_SCATTER,
+    E_X0,
+    E_X1,
+    E_Y0,
+    E_Y1,
+    STATION_SEEN,
+    STATION_STOPS,
+    scattered_row,
+)  # fmt: skip
 
 _branch_destination = register_jitable(branch_destination)
 _next_gene = register_jitable(next_gene)
@@ -211,12 +221,20 @@ def _walk(
 
 
 @njit(cache=True, inline="always")
-def _run_env(env, seen):
+def _run_env(env, station):
     """(scatter scale, whether the block stops, x0, y0, x1, y1, radius) of a run from the
-    packed envelope ``env`` (``evolve.variation.E_*``): scalars that ``_walk`` reads. The block
-    stops when ``E_STOPS`` is 2 (in every run) or 1 and the run sees it."""
-    stops = env[E_STOPS] > 1.5 or (seen and env[E_STOPS] > 0.0)
+    packed envelope ``env`` (``evolve.variation.E_*``) and its ``station`` bits: scalars that
+    ``_walk`` reads."""
+    stops = (station & STATION_STOPS) != 0
     return env[E_SCATTER], stops, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1], env[E_RADIUS]
+
+
+@njit(cache=True, inline="always")
+def _seen_block(env, station):
+    """(seen, x0, y0, x1, y1): the station block as the object sensors meet it
+    (``_object_sense``)."""
+    seen = (station & STATION_SEEN) != 0
+    return seen, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1]
 
 
 @njit(cache=True, inline="always")
@@ -270,12 +288,12 @@ def run_one(
     """Run one chromosome (decoded, (G,) and (G, 4) arrays) from pose (x, y, h).
 
     ``table``: the robot's gait table for the run; ``draws`` = (packed envelope, σ (16, 3),
-    scatter key, reach, station seen), its envelope draws (``evolve.variation``).
+    scatter key, reach, station bits), its envelope draws (``evolve.variation``).
     Returns (squares, inner, steps, docks, end, x, y, h) — the interpreter's ``RunResult``.
     """
-    env, sigma, key, reach, seen = draws
-    run_env = _run_env(env, seen)
-    block = (seen, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1])
+    env, sigma, key, reach, station = draws
+    run_env = _run_env(env, station)
+    block = _seen_block(env, station)
     n_genes = loops.shape[0]
     max_branches = int(p[P_MAX_BRANCH])
     backup = int(p[P_BACKUP_GAIT])
@@ -383,7 +401,7 @@ def evaluate_flat(
     envelope); ``p`` from ``geometry.pack_world``. Row i·S + s holds individual i from
     start s.
     """
-    rows, reach, seen, keys, sigma, env = draws
+    rows, reach, station, keys, sigma, env = draws
     n_starts = starts.shape[0]
     total = loops.shape[0] * n_starts
     for idx in prange(total):
@@ -401,7 +419,7 @@ def evaluate_flat(
             starts[s, 2],
             start_power,
             max_steps,
-            (env, sigma, keys[s, 0], reach[s, 0], seen[s]),
+            (env, sigma, keys[s, 0], reach[s, 0], station[s]),
         )
         out_int[idx, OUT_SQUARES] = r[0]
         out_int[idx, OUT_INNER] = r[1]
@@ -527,16 +545,16 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     (``ColonySettings.start_powers``). ``pose`` (R, 3) holds the start poses
     and receives the final ones; ``power`` (R,), ``st`` (R, S_COLUMNS), ``masks`` (R, 2)
     uint64 are the robots' state; ``out`` receives (colony squares, inner, colony steps).
-    ``draws`` = (gait tables (R, 16, 3), reaches (R,), station seen, scatter keys (R,), σ
+    ``draws`` = (gait tables (R, 16, 3), reaches (R,), station bits, scatter keys (R,), σ
     (16, 3), packed envelope): the run's envelope draws (``evolve.variation``).
     The turn is written out here, not in a helper: an inlined helper taking these arrays
     would increment and decrement each one's reference count on every turn (see the module
     docstring).
     """
     loops, ops, arg, target = code
-    rows, reach, seen, keys, sigma, env = draws
-    run_env = _run_env(env, seen)
-    block = (seen, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1])
+    rows, reach, station, keys, sigma, env = draws
+    run_env = _run_env(env, station)
+    block = _seen_block(env, station)
     radius, min_dist = colony[0], colony[1]
     charge_steps, step_limit = int(colony[2]), int(colony[3])
     slide = int(colony[4]) == BLOCK_SLIDE
@@ -632,7 +650,7 @@ def evaluate_colony_flat(
     ``starts`` (S, R, 3); ``start_power`` (R,) each robot's start power; ``draws`` the arrays
     of ``evolve.variation.KernelDraws`` for S starts × R robots; state and outputs (P·S, R, …)
     and ``out_run`` (P·S, 3), row i·S + s for individual i from start s."""
-    rows, reach, seen, keys, sigma, env = draws
+    rows, reach, station, keys, sigma, env = draws
     n_starts = starts.shape[0]
     total = loops.shape[0] * n_starts
     for idx in prange(total):
@@ -640,7 +658,7 @@ def evaluate_colony_flat(
         pose[idx] = starts[s]
         run_colony_one(
             (loops[i], ops[i], arg[i], target[i]), nav_run,
-            (rows[s], reach[s], seen[s], keys[s], sigma, env), p, start_power, max_steps,
+            (rows[s], reach[s], station[s], keys[s], sigma, env), p, start_power, max_steps,
             colony, pose[idx], power[idx], st[idx], masks[idx], out_run[idx],
         )  # fmt: skip
 

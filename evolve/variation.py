@@ -10,7 +10,8 @@ and of where it is used (``evolve.draws``), never of a stream's state:
 - per run (``RobotDraws``, from the run key and a stream tag): the bias of each gait's row,
   ``STREAM_BIAS`` (triple g of ``normal3``), and the activation distance, ``STREAM_REACH``;
 - per run of the whole colony: whether the station block is there, ``STREAM_STATION`` of robot
-  0's run key (one station for every robot);
+  0's run key, and whether an unseen block stops motion, ``STREAM_STOPS`` of it (one station
+  for every robot: ``Variation.station``);
 - per cycle: the scatter of cycle c, ``normal3`` of the ``STREAM_SCATTER`` key absorbing c,
   where c counts the robot's executed gait cycles before this one, from 0: every gait cycle
   it executes, the charging routine's backup cycles and cancelled moves included (the
@@ -43,15 +44,15 @@ from evolve.envelope import (
 from evolve.settings import WorldSettings
 from evolve.table import N_GAITS, validate_table
 
-STREAM_SCATTER, STREAM_BIAS, STREAM_REACH, STREAM_STATION = 1, 2, 3, 4
+STREAM_SCATTER, STREAM_BIAS, STREAM_REACH, STREAM_STATION, STREAM_STOPS = 1, 2, 3, 4, 5
 """Stream tags: what a draw of a run is for."""
-E_SCATTER, E_STOPS, E_X0, E_Y0, E_X1, E_Y1, E_RADIUS = range(7)
+E_SCATTER, E_X0, E_Y0, E_X1, E_Y1, E_RADIUS = range(6)
 """Layout of the packed envelope vector the kernels read (``Variation.packed``): the scatter
-scale, when the block stops motion (``_STOPS_CODE``), the block's box (units) and the robot
-radius (units) that the block stops."""
-E_SIZE = 7
-_STOPS_CODE = {False: 0.0, True: 1.0, STOPS_ALWAYS: 2.0}
-"""``E_STOPS`` of ``Envelope.station_stops``: never, when the block is seen, in every run."""
+scale, the block's box (units) and the robot radius (units) that the block stops."""
+E_SIZE = 6
+STATION_SEEN, STATION_STOPS = 1, 2
+"""Bits of a run's station (``Variation.station``): the block is there for the object sensors;
+it stops motion."""
 
 
 @register_jitable
@@ -81,8 +82,8 @@ class KernelDraws(NamedTuple):
     """(S, R, 16, 3) float64: each robot's gait table for the run."""
     reach: np.ndarray
     """(S, R) float64: each robot's activation distance."""
-    seen: np.ndarray
-    """(S,) bool: whether the run's station block is there."""
+    station: np.ndarray
+    """(S,) int64: each run's station bits (``STATION_SEEN``, ``STATION_STOPS``)."""
     keys: np.ndarray
     """(S, R) uint64: each robot's scatter key."""
     sigma: np.ndarray
@@ -113,7 +114,7 @@ class Variation:
     block: tuple[float, float, float, float]
     """The station block (x0, y0, x1, y1), units."""
     radius: float
-    """Robot radius that a seen block stops (``station_stops``), units."""
+    """Robot radius that a block stops (``station_stops``), units."""
     object_range: float
     """The world's activation distance, units: the centre of the reach draws."""
     station_trial: int
@@ -172,11 +173,27 @@ class Variation:
         key = self.run_key(start, 0, self.station_trial)
         return (unit(absorb(key, STREAM_STATION)) + self.station_offset) % 1.0 < p
 
+    def station(self, start: int) -> int:
+        """The station bits of the run from start index ``start``: ``STATION_SEEN`` when its
+        block is there for the sensors, ``STATION_STOPS`` when the block stops motion
+        (``Envelope.station_stops``, ``unseen_stops_p``)."""
+        env = self.envelope
+        seen = self.station_seen(start)
+        if env.station_stops == STOPS_ALWAYS:
+            stops = True
+        elif env.station_stops is True:
+            p = env.unseen_stops_p
+            stops = seen or p >= 1.0 or (
+                p > 0.0 and unit(absorb(self.run_key(start, 0), STREAM_STOPS)) < p
+            )
+        else:
+            stops = False
+        return STATION_SEEN * seen + STATION_STOPS * stops
+
     def packed(self) -> np.ndarray:
         """The ``E_*`` vector the kernels read."""
         out = np.zeros(E_SIZE)
         out[E_SCATTER] = self.envelope.scatter_scale
-        out[E_STOPS] = _STOPS_CODE[self.envelope.station_stops]
         out[E_X0], out[E_Y0], out[E_X1], out[E_Y1] = self.block
         out[E_RADIUS] = self.radius
         return out
@@ -187,17 +204,17 @@ class Variation:
         rows = np.empty((starts, robots, N_GAITS, 3))
         reach = np.empty((starts, robots))
         keys = np.zeros((starts, robots), dtype=np.uint64)
-        seen = np.zeros(starts, dtype=np.bool_)
+        station = np.zeros(starts, dtype=np.int64)
         if not self.envelope.varies:
             rows[...] = self.table
             reach[...] = self.object_range
         else:
             for s in range(starts):
-                seen[s] = self.station_seen(s)
+                station[s] = self.station(s)
                 for r in range(robots):
                     d = self.robot(s, r)
                     rows[s, r], reach[s, r], keys[s, r] = d.rows, d.reach, d.scatter_key
-        return KernelDraws(rows, reach, seen, keys, np.ascontiguousarray(self.sigma),
+        return KernelDraws(rows, reach, station, keys, np.ascontiguousarray(self.sigma),
                            self.packed())  # fmt: skip
 
 
@@ -208,7 +225,7 @@ class RobotRun:
 
     def __init__(
         self, variation: Variation | None, table: np.ndarray, p: tuple[float, ...],
-        start: int, robot: int, seen: bool,
+        start: int, robot: int, station: int,
     ) -> None:  # fmt: skip
         self.p = p
         self.cycle = 0
@@ -224,9 +241,8 @@ class RobotRun:
         self.reach = d.reach
         self.key = d.scatter_key
         self.scale = variation.envelope.scatter_scale
-        self.block = variation.block if seen else None
-        stops = variation.envelope.station_stops
-        self.stops = stops == STOPS_ALWAYS or (seen and stops is True)
+        self.block = variation.block if station & STATION_SEEN else None
+        self.stops = bool(station & STATION_STOPS)
         self.stop_block = variation.block
         self.radius = variation.radius
 
@@ -264,7 +280,6 @@ __all__ = [
     "E_RADIUS",
     "E_SCATTER",
     "E_SIZE",
-    "E_STOPS",
     "E_X0",
     "E_X1",
     "E_Y0",
@@ -272,6 +287,8 @@ __all__ = [
     "KernelDraws",
     "RobotDraws",
     "RobotRun",
+    "STATION_SEEN",
+    "STATION_STOPS",
     "Variation",
     "scattered_row",
     "variation_for",

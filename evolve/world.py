@@ -67,8 +67,8 @@ def _robot_runs(
     world = WorldSettings() if world is None else world
     p = geometry.packed_tuple(world)
     var = variation_for(envelope, table, world, envelope_key, radius)
-    seen = var is not None and var.station_seen(start)
-    return values, world, p, [RobotRun(var, values, p, start, i, seen) for i in range(robots)]
+    station = 0 if var is None else var.station(start)
+    return values, world, p, [RobotRun(var, values, p, start, i, station) for i in range(robots)]
 
 
 class TableWorld:

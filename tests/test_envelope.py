@@ -45,7 +45,13 @@ from evolve.interpreter import END_KILL_ZONE, END_POWER_EMPTY, run, run_colony
 from evolve.population import PopulationRun, evaluate_sections
 from evolve.settings import ColonySettings, GASettings
 from evolve.table import PAPER_TABLE, load_table, table_to_json
-from evolve.variation import STREAM_SCATTER, Variation, scattered_row
+from evolve.variation import (
+    STATION_SEEN,
+    STATION_STOPS,
+    STREAM_SCATTER,
+    Variation,
+    scattered_row,
+)  # fmt: skip
 from evolve.world import TableColony, TableWorld
 from infra.rundir import RunDirError
 
@@ -59,6 +65,8 @@ IN_THE_WAY = Envelope(
     scatter_scale=1.0, station_seen_p=0.5, reach_units=5.0, station_stops="always"
 )
 """The block seen in half the runs and in the way in every run, as in physics."""
+HALF_IN_THE_WAY = dataclasses.replace(IN_THE_WAY, station_stops=True, unseen_stops_p=0.5)
+"""The block in the way in every seen run and in half the unseen ones."""
 KEY = (7, 3)
 SCATTER_ONLY = Envelope(scatter_scale=1.0)
 BIAS_ONLY = Envelope(bias_scale=1.0)
@@ -153,7 +161,9 @@ def test_none_is_the_stored_pre_envelope_world_in_the_interpreter(work):
 
 
 @pytest.mark.parametrize(
-    "envelope", [EVERYTHING, LOUD, IN_THE_WAY], ids=["everything", "loud", "in the way"]
+    "envelope",
+    [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY],
+    ids=["everything", "loud", "in the way", "half in the way"],
 )
 def test_lone_kernel_equals_interpreter_in_an_envelope(work, envelope):
     g, st = work.coverage[:300], work.coverage_starts
@@ -174,7 +184,9 @@ def test_lone_kernel_equals_interpreter_in_an_envelope(work, envelope):
 
 
 @pytest.mark.parametrize(
-    "envelope", [EVERYTHING, LOUD, IN_THE_WAY], ids=["everything", "loud", "in the way"]
+    "envelope",
+    [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY],
+    ids=["everything", "loud", "in the way", "half in the way"],
 )
 def test_colony_kernel_equals_interpreter_in_an_envelope(work, envelope):
     g, st = work.colony[:120], work.colony_starts
@@ -413,6 +425,38 @@ def test_a_block_always_in_the_way_stops_unseen_and_stays_unseen():
     assert (ev.end[:, 0] == END_POWER_EMPTY).all() and (ev.final_pose[:, 0] == pose).all()
 
 
+def test_an_unseen_block_stops_in_about_unseen_stops_p_of_the_runs():
+    """``unseen_stops_p``: a seen block always stops; an unseen one in about that fraction of
+    the runs, drawn per run apart from the seen draw; 0 is ``True`` and 1 is ``"always"``."""
+
+    def stations(env, n=4000):
+        var = Variation.of(env, PAPER_TABLE, WORLD, KEY, 15.0)
+        return np.array([var.station(s) for s in range(n)])
+
+    half = Envelope(station_seen_p=0.5, station_stops=True, unseen_stops_p=0.3)
+    got = stations(half)
+    seen, stops = (got & STATION_SEEN) > 0, (got & STATION_STOPS) > 0
+    np.testing.assert_array_equal(seen, stations(Envelope(station_seen_p=0.5)) > 0)
+    assert stops[seen].all() and abs(stops[~seen].mean() - 0.3) < 0.035
+    for p, same in ((0.0, True), (1.0, "always")):
+        np.testing.assert_array_equal(
+            stations(dataclasses.replace(half, unseen_stops_p=p)),
+            stations(dataclasses.replace(half, station_stops=same, unseen_stops_p=0.0)),
+        )
+    # one run of each kind: the unseen block that stops cancels the move and stays unseen
+    pose = (460.0, 250.0, 90.0)
+    far = (station_block(WORLD)[0] - 49.0, 250.0, 90.0)
+    stopping, free = int(np.argmax(~seen & stops)), int(np.argmax(~seen & ~stops))
+    for s, stopped in ((stopping, True), (free, False)):
+        world = TableWorld(PAPER_TABLE, *pose, envelope=half, envelope_key=KEY, start=s)
+        assert world.step(0) is stopped and (world.pose() == pose) is stopped
+        sensors = TableWorld(PAPER_TABLE, *far, envelope=half, envelope_key=KEY, start=s)
+        assert sensors.object_sensors() == (False, False)
+    starts = np.array([pose, (300.0, 100.0, 0.0), (300.0, 400.0, 0.0)])
+    colony = TableColony(PAPER_TABLE, starts, envelope=half, envelope_key=KEY, start=stopping)
+    assert colony.step(0, 0) is True  # one station for the colony
+
+
 # --------------------------------------------------------------------------- inputs
 
 
@@ -439,6 +483,10 @@ def test_named_and_file_envelopes_load(tmp_path):
         ({"reach_units": True}, "reach_units must be a finite number"),
         ({"station_stops": 1}, 'station_stops must be true, false or "always"'),
         ({"station_stops": "sometimes"}, 'station_stops must be true, false or "always"'),
+        ({"unseen_stops_p": 1.5}, "unseen_stops_p must be a probability"),
+        ({"station_stops": True, "unseen_stops_p": "half"}, "unseen_stops_p must be a probability"),
+        ({"unseen_stops_p": 0.5}, "unseen_stops_p 0.5 needs station_stops true"),
+        ({"station_stops": "always", "unseen_stops_p": 0.5}, "needs station_stops true"),
         ({"draws_per_start": 1.5}, "draws_per_start must be an integer ≥ 1"),
         ({"warmup_fraction": -0.1}, "warmup_fraction must be ≥ 0"),
         ({"station_strata": "yes"}, "station_strata must be true or false"),
@@ -631,6 +679,8 @@ def test_an_envelope_recorded_before_the_training_fields_reads_back_as_it_was():
     assert (env.draws_per_start, env.warmup_fraction) == (1, 0.0)
     assert env.to_dict() == old_record  # a folder made then still resumes
     assert DEFAULT.to_dict() == old_record | {"draws_per_start": 2, "station_strata": True}
+    half = Envelope.from_dict(old_record | {"station_stops": True, "unseen_stops_p": 0.5})
+    assert half.to_dict() == old_record | {"station_stops": True, "unseen_stops_p": 0.5}
 
 
 def test_stratified_station_draws_split_each_start_between_the_worlds():
