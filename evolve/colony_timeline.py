@@ -13,6 +13,14 @@ colony_starts``), and for every colony step t = 0 … T the mean over the starts
 
 A run that ends before T holds its last docks and live robots (nobody charges after it).
 
+**Hand-offs in the colony and alone.** Every switch of a robot from coverage to navigation is a
+hand-off (``evolve.handoff``): it docks, or the robot ends first, or the run's step limit cuts
+it. For each finalist the same is counted for its robots run *alone* from their colony start
+poses and start powers (``collect_handoffs``), so the two docking rates say what the other
+robots cost the navigation section. A failed hand-off in the colony also records its
+cancelled moves and whether another robot had already ended within ``NEAR_DOCK`` of the dock
+point: ended robots stay as obstacles (SPEC §7).
+
 **A dock in the event stream.** The interpreter counts a dock when, after a gait step in the
 navigation section, the docking rule holds and no other robot charges. That step is a
 ``"gait"`` event of mode ``"navigation"`` whose pose meets the rule (``geometry.docked``)
@@ -43,7 +51,15 @@ import numpy as np
 
 from evolve import geometry as geo
 from evolve.codec import read_chromosome
-from evolve.interpreter import LIVE_ENDS, ColonyEvent, ColonyResult, run_colony
+from evolve.handoff import CUT, DOCKED, collect_handoffs, handoff_rate
+from evolve.interpreter import (
+    BLOCKED_MARK,
+    END_NAMES,
+    LIVE_ENDS,
+    ColonyEvent,
+    ColonyResult,
+    run_colony,
+)
 from evolve.settings import ColonySettings, WorldSettings
 from evolve.starts import colony_starts
 from evolve.table import GaitTable, load_table
@@ -55,6 +71,9 @@ DOCK_GOAL = 2.0
 """Issue 17's goal: every robot docks at least this many times in a run."""
 LIVE_GOAL_SHARE = 2.0 / 3.0
 """Issue 17's goal: at least this share of the colony's robots live at the end (2 of 3)."""
+NEAR_DOCK = 80.0
+"""A failed hand-off is *beside an ended robot* when another robot ended within this many
+units of the dock point before it failed, units."""
 FIGURE_NAME = "docks_over_time.png"
 """The figure's default name in ``RUN_DIR/colony``; the curves go beside it as ``.json``."""
 
@@ -77,6 +96,21 @@ class RunTimeline:
     """Per robot: the colony steps at which it docked."""
     result: ColonyResult
     """The interpreter's result of the run."""
+    handoffs: tuple[ColonyHandoff, ...]
+    """Every hand-off of every robot, in the order they closed."""
+
+
+@dataclass(frozen=True)
+class ColonyHandoff:
+    """One robot's switch to navigation in a colony run, and what followed."""
+
+    robot: int
+    outcome: str
+    """``DOCKED``, ``CUT`` or the name of the robot's end (``END_NAMES``)."""
+    blocked: int
+    """Its moves cancelled between the switch and the outcome."""
+    beside_ended: bool
+    """Another robot had ended within ``NEAR_DOCK`` of the dock point when it closed."""
 
 
 class _DockWatcher:
@@ -90,9 +124,34 @@ class _DockWatcher:
         self.docks: list[list[int]] = [[] for _ in range(robots)]
         self.charging: list[int] = []
         self.ended = [0] * robots
+        self.dock_point = world.dock_point
+        self.mode = ["coverage"] * robots
+        self.blocked: list[int | None] = [None] * robots  # per robot: its open hand-off's
+        self.ended_near: set[int] = set()
+        self.beside: list[bool | None] = [None] * robots  # at the robot's end, if it ended
+        self.handoffs: list[ColonyHandoff] = []
+
+    def _close(self, i: int, outcome: str) -> None:
+        beside = self.beside[i] if self.beside[i] is not None else bool(self.ended_near - {i})
+        self.handoffs.append(ColonyHandoff(i, outcome, self.blocked[i], beside))
+        self.blocked[i] = None
+
+    def close_open(self, result: ColonyResult) -> None:
+        """Close the hand-offs still open when the run ended, with each robot's end."""
+        for i, r in enumerate(result.robots):
+            if self.blocked[i] is not None:
+                self._close(i, CUT if r.end in LIVE_ENDS else END_NAMES[r.end])
 
     def __call__(self, ce: ColonyEvent) -> None:
         i, t, e = ce.robot, ce.colony_step, ce.event
+        if e.kind == "gait":
+            if e.mode == "navigation" and self.mode[i] != "navigation":
+                self.blocked[i] = 0
+            self.mode[i] = e.mode
+            if self.blocked[i] is not None and e.text.endswith(BLOCKED_MARK):
+                self.blocked[i] += 1
+        elif e.kind == "charge" and self.blocked[i] is not None:
+            self._close(i, DOCKED)
         if self.pending[i] is not None:
             if e.kind != "wait":  # the docking rule held and the station was free
                 self.docks[i].append(self.pending[i])
@@ -109,6 +168,10 @@ class _DockWatcher:
             self.charging.append(t)
         elif e.kind == "end":
             self.ended[i] = t
+            self.beside[i] = bool(self.ended_near - {i})
+            x, y, _ = e.pose
+            if np.hypot(x - self.dock_point[0], y - self.dock_point[1]) <= NEAR_DOCK:
+                self.ended_near.add(i)
 
 
 def run_timeline(
@@ -132,6 +195,7 @@ def run_timeline(
         settings=world, colony=colony, start_power=start_power, max_steps=max_steps,
         on_event=watch,
     )  # fmt: skip
+    watch.close_open(res)
     counted = [len(d) for d in watch.docks]
     want = [r.docks for r in res.robots]
     assert counted == want, f"docks from the events {counted} != the interpreter's {want}"
@@ -145,7 +209,8 @@ def run_timeline(
         if r.end not in LIVE_ENDS:
             live[end:] -= 1
     charging = np.bincount(np.asarray(watch.charging, dtype=np.int64), minlength=steps)[:steps]
-    return RunTimeline(docks, live, charging, tuple(tuple(d) for d in watch.docks), res)
+    return RunTimeline(docks, live, charging, tuple(tuple(d) for d in watch.docks), res,
+                       tuple(watch.handoffs))  # fmt: skip
 
 
 def _hold(a: np.ndarray, n: int, fill: float | None = None) -> np.ndarray:
@@ -154,9 +219,7 @@ def _hold(a: np.ndarray, n: int, fill: float | None = None) -> np.ndarray:
     return np.concatenate([a, np.full(n - len(a), pad, dtype=a.dtype)])
 
 
-def colony_timeline(
-    chromosome: np.ndarray, starts: np.ndarray, **run: Any
-) -> dict[str, Any]:
+def colony_timeline(chromosome: np.ndarray, starts: np.ndarray, **run: Any) -> dict[str, Any]:
     """Means over the colony ``starts`` (S, R, 3) of a chromosome's runs (``run``: the keyword
     arguments of ``run_timeline``: table, world, colony, ...), per colony step
     t = 0 … T (T the longest run): ``docks_per_robot`` (cumulative docks / R), ``live`` and
@@ -166,6 +229,7 @@ def colony_timeline(
     ``robots``, ``starts``."""
     starts = np.asarray(starts, dtype=np.float64)
     runs = [run_timeline(chromosome, s, **run) for s in starts]
+    in_colony = [h for r in runs for h in r.handoffs]
     n = max(len(r.docks) for r in runs)
     r_count = starts.shape[1]
     docks = np.mean([_hold(r.docks, n) for r in runs], axis=0) / r_count
@@ -180,7 +244,38 @@ def colony_timeline(
         "final_docks_per_robot": float(np.mean([[x.docks for x in r.result.robots] for r in runs])),
         "live_at_end": float(np.mean([r.result.live for r in runs])),
         "colony_steps": float(np.mean([r.result.colony_steps for r in runs])),
+        "handoffs": _colony_handoff_rate(in_colony),
+        "handoffs_alone": handoff_rate(_alone(chromosome, starts, **run)),
     }
+
+
+def _colony_handoff_rate(handoffs: list[ColonyHandoff]) -> dict[str, Any]:
+    """``handoff_rate`` of a colony's hand-offs, the failed ones by their end, and their mean
+    cancelled moves and share beside an ended robot (None without a failed one)."""
+    failed = [h for h in handoffs if h.outcome not in (DOCKED, CUT)]
+    return {
+        **handoff_rate(handoffs),
+        "failed_by_end": {n: sum(h.outcome == n for h in failed) for n in END_NAMES[1:4]},
+        "blocked_per_failed": float(np.mean([h.blocked for h in failed])) if failed else None,
+        "failed_beside_ended": float(np.mean([h.beside_ended for h in failed])) if failed else None,
+    }
+
+
+def _alone(
+    chromosome: np.ndarray, starts: np.ndarray, *, table: GaitTable | np.ndarray,
+    world: WorldSettings, colony: ColonySettings, start_power: float | None = None,
+    max_steps: int | None = None,
+) -> list[Any]:  # fmt: skip
+    """The hand-offs of each robot of the colony ``starts`` (S, R, 3) run alone from its start
+    pose and start power (``ColonySettings.start_powers``)."""
+    p0 = world.start_power_v if start_power is None else start_power
+    out = []
+    for r, power in enumerate(colony.start_powers(p0, world.charged_power_v)):
+        own = dataclasses.replace(world, start_power_v=power)
+        for found in collect_handoffs(chromosome, starts[:, r], table=table, world=own,
+                                      max_steps=max_steps):  # fmt: skip
+            out += found
+    return out
 
 
 # --------------------------------------------------------------------------- a run folder
@@ -292,6 +387,10 @@ def _rounded(doc: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _share(rate: float | None) -> str:
+    return "-" if rate is None else f"{100.0 * rate:.1f} %"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m evolve.colony_timeline",
                                  description=__doc__.splitlines()[0])  # fmt: skip
@@ -334,12 +433,23 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {cv['finalist']}: docks per robot {cv['final_docks_per_robot']:.2f}, "
               f"live at the end {cv['live_at_end']:.2f} of {cv['robots']}, "
               f"colony steps {cv['colony_steps']:.0f}")  # fmt: skip
+        h, alone = cv["handoffs"], cv["handoffs_alone"]
+        failed = ", ".join(f"{k} {v}" for k, v in h["failed_by_end"].items())
+        context = ""
+        if h["blocked_per_failed"] is not None:
+            context = (f"; per failed: {h['blocked_per_failed']:.1f} moves cancelled, beside "
+                       f"an ended robot {_share(h['failed_beside_ended'])}")  # fmt: skip
+        print(f"    hand-offs docked {_share(h['dock_rate'])} in the colony ({h['handoffs']}; "
+              f"failed: {failed}{context}), {_share(alone['dock_rate'])} alone "
+              f"({alone['handoffs']})")  # fmt: skip
     print(f"wrote {out} and {out.with_suffix('.json')} in {time.perf_counter() - t0:.1f} s")
     return 0
 
 
 __all__ = [
     "DOCK_GOAL",
+    "NEAR_DOCK",
+    "ColonyHandoff",
     "FIGURE_NAME",
     "LIVE_GOAL_SHARE",
     "RunTimeline",

@@ -67,6 +67,8 @@ from evolve.world import ColonyWorld, RobotView, World
 END_STEP_LIMIT, END_KILL_ZONE, END_POWER_EMPTY, END_BRANCH_LIMIT, END_DOCKED = 0, 1, 2, 3, 4
 END_NAMES = ("step limit", "kill zone", "power empty", "branch limit", "docked")
 """Display name of each end code."""
+BLOCKED_MARK = " (blocked)"
+"""Ends the text of a ``"gait"`` event whose move was cancelled (``RunResult.collisions``)."""
 LIVE_ENDS = (END_STEP_LIMIT, END_DOCKED)
 """End codes of a robot *live at the end* of a colony run (``ColonySettings.fitness``
 ``"alive"``, the colony's reports): it ran until its own gait-step limit, or the colony-step
@@ -222,7 +224,7 @@ class _Run:
         self.branches = 0
         self.collisions += blocked
         self.track.append((x, y, h))
-        text = f"gait {gait} (blocked)" if blocked else f"gait {gait}"
+        text = f"gait {gait}{BLOCKED_MARK}" if blocked else f"gait {gait}"
         if geo.killed(x, y, self.p):
             self.emit("gait", gene, instr, text, gait, mode)
             return END_KILL_ZONE
@@ -539,6 +541,7 @@ def run_colony(
 
 
 __all__ = [
+    "BLOCKED_MARK",
     "END_BRANCH_LIMIT",
     "END_DOCKED",
     "END_KILL_ZONE",

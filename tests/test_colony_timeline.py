@@ -2,7 +2,9 @@
 interpreter's events on a hand-worked colony (docks, refusals, a kill, charging steps), a dock
 on the last allowed step and under the colony-step limit, the count against the interpreter's
 ``RunResult.docks`` on random colonies near the station, live robots that start at R and never
-rise, the means over starts, the figure, and the CLI on a tiny run folder and a bad one."""
+rise, the means over starts, hand-offs in the colony and alone (hand-worked: docks, a kill, a
+cut approach, an approach blocked by a robot ended at the station), the figure, and the CLI on
+a tiny run folder and a bad one."""
 
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ import pytest
 from chromosome_text import STILL, B, G, chrom, gene
 
 from evolve.codec import write_chromosome
-from evolve.colony_timeline import colony_timeline, main, run_timeline
+from evolve.colony_timeline import ColonyHandoff, colony_timeline, main, run_timeline
 from evolve.figures import figure_colony_docks
 from evolve.interpreter import END_KILL_ZONE, END_STEP_LIMIT
 from evolve.settings import ColonySettings, WorldSettings, settings_json
@@ -58,6 +60,47 @@ def test_hand_worked_colony_docks_charges_and_a_kill():
     for first in (2, 12, 30, 48):
         charging[first : first + 10] = 1
     np.testing.assert_array_equal(tl.charging, charging)
+
+
+def test_hand_offs_in_the_colony_and_alone_hand_worked():
+    # The colony above: robot 0 hands off at once and docks (step 1), hands off again after
+    # its charge and meets the kill zone; robot 1 docks after each of its 3 hand-offs. Alone
+    # from the same poses and 3.95 V nobody holds the station: robot 0 docks every 8 gait
+    # steps (1, 9, 17, 25) and its 5th approach is cut by the 30-step limit; robot 1 docks
+    # at 11, 19 and 27 and ends backing up.
+    starts = np.array([[[450.0, 235.0, 90.0], [350.0, 270.0, 90.0]]])
+    c = colony_timeline(DOCKER, starts, table=TABLE, world=LOW, colony=ColonySettings(robots=2),
+                        start_power=3.95, max_steps=30)  # fmt: skip
+    assert c["handoffs"] == {
+        "handoffs": 5, "docked": 4, "failed": 1, "cut": 0, "dock_rate": 0.8,
+        "failed_by_end": {"kill zone": 1, "power empty": 0, "branch limit": 0},
+        "blocked_per_failed": 0.0, "failed_beside_ended": 0.0,
+    }  # fmt: skip
+    assert c["handoffs_alone"] == {"handoffs": 8, "docked": 7, "failed": 0, "cut": 1,
+                                   "dock_rate": 1.0}  # fmt: skip
+
+
+def test_a_hand_off_blocked_by_a_robot_ended_at_the_station():
+    # Robot 0 (x 470) walks into the kill zone at x 480 in colony step 1, 15 units from the dock
+    # point, and stays there. Robot 1 (x 420) walks to 450 (30 units from it: allowed); every
+    # later move would come closer and is cancelled, 57 of them, until its store is empty
+    # after 60 cycles (3.95 − 60 × 0.0209 < 2.7 V).
+    starts = np.array([[470.0, 250.0, 90.0], [420.0, 250.0, 90.0]])
+    tl = run_timeline(DOCKER, starts, table=TABLE, world=WORLD, colony=ColonySettings(robots=2),
+                      start_power=3.95, max_steps=100)  # fmt: skip
+    assert tl.handoffs == (
+        ColonyHandoff(0, "kill zone", blocked=0, beside_ended=False),
+        ColonyHandoff(1, "power empty", blocked=57, beside_ended=True),
+    )
+    assert tl.result.robots[1].collisions == 57 and tl.result.robots[1].steps == 60
+    two = ColonySettings(robots=2)
+    c = colony_timeline(DOCKER, starts[None], table=TABLE, world=WORLD, colony=two,
+                        start_power=3.95, max_steps=100)  # fmt: skip
+    h = c["handoffs"]
+    assert (h["dock_rate"], h["blocked_per_failed"], h["failed_beside_ended"]) == (0.0, 28.5, 0.5)
+    assert h["failed_by_end"] == {"kill zone": 1, "power empty": 1, "branch limit": 0}
+    # alone, robot 1 walks on and docks at 460
+    assert c["handoffs_alone"]["docked"] == 1 and c["handoffs_alone"]["failed"] == 1
 
 
 def test_a_dock_without_a_charge_still_counts():
@@ -140,6 +183,7 @@ def test_cli_writes_the_figure_and_curves(tmp_path, capsys):
     assert main([str(run), "--starts", "2"]) == 0
     text = capsys.readouterr().out
     assert "best_pop0: docks per robot" in text and "best_pop1: docks per robot 0.00" in text
+    assert "hand-offs docked" in text and "alone" in text
     assert (run / "colony" / "docks_over_time.png").stat().st_size > 0
     doc = json.loads((run / "colony" / "docks_over_time.json").read_text())
     assert doc["ColonySettings"] == colony.to_dict() and doc["table_matches_run"]
