@@ -25,6 +25,7 @@ within each population and over the population means, the own world). Writes
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import sys
@@ -34,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from evolve.codec import format_chromosome
-from evolve.envelope import DEFAULT, NONE, Envelope, load_envelope
+from evolve.envelope import DEFAULT, NONE, TRAINING_DEFAULTS, Envelope, load_envelope
 from evolve.table import load_table
 from infra.io import write_report
 from servobot.progress import RunBar, progress_bar
@@ -221,8 +222,9 @@ def main(argv: list[str] | None = None) -> int:
         top = samples["top20"]
         phys = {w: v[: len(top)] for w, v in phys_all.items()}
         out["tune"] = tune(top, starts, table, phys, a.seed, a.draws, a.steps)
-        out["default_rank"] = next(
-            i for i, r in enumerate(out["tune"]) if r["envelope"] == DEFAULT.to_dict()
+        aspects = dataclasses.replace(DEFAULT, **TRAINING_DEFAULTS).to_dict()
+        out["default_rank"] = next(  # None: `default` is not on the grid
+            (i for i, r in enumerate(out["tune"]) if r["envelope"] == aspects), None
         )
     write_report(a.out, "ranking", out, _markdown(out))
     return 0
