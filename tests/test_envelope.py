@@ -67,6 +67,12 @@ IN_THE_WAY = Envelope(
 """The block seen in half the runs and in the way in every run, as in physics."""
 HALF_IN_THE_WAY = dataclasses.replace(IN_THE_WAY, station_stops=True, unseen_stops_p=0.5)
 """The block in the way in every seen run and in half the unseen ones."""
+EVERY_ENVELOPE = pytest.mark.parametrize(
+    "envelope",
+    [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY],
+    ids=["everything", "loud", "in the way", "half in the way"],
+)
+"""The kernel = interpreter cases: every aspect, loud scales, the block's stop rules."""
 KEY = (7, 3)
 SCATTER_ONLY = Envelope(scatter_scale=1.0)
 BIAS_ONLY = Envelope(bias_scale=1.0)
@@ -160,11 +166,7 @@ def test_none_is_the_stored_pre_envelope_world_in_the_interpreter(work):
 # --------------------------------------------------------------------------- kernel = interpreter
 
 
-@pytest.mark.parametrize(
-    "envelope",
-    [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY],
-    ids=["everything", "loud", "in the way", "half in the way"],
-)
+@EVERY_ENVELOPE
 def test_lone_kernel_equals_interpreter_in_an_envelope(work, envelope):
     g, st = work.coverage[:300], work.coverage_starts
     ev = evaluate(g, st, table=PAPER_TABLE, mode="coverage", start_power=START_POWER,
@@ -183,11 +185,7 @@ def test_lone_kernel_equals_interpreter_in_an_envelope(work, envelope):
     assert set(np.unique(ev.end).tolist()) == {0, 1, 2, 3, 4}
 
 
-@pytest.mark.parametrize(
-    "envelope",
-    [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY],
-    ids=["everything", "loud", "in the way", "half in the way"],
-)
+@EVERY_ENVELOPE
 def test_colony_kernel_equals_interpreter_in_an_envelope(work, envelope):
     g, st = work.colony[:120], work.colony_starts
     ev = evaluate_colony(g, st, table=PAPER_TABLE, mode="coverage", start_power=START_POWER,
