@@ -34,7 +34,8 @@ Run: ``python -m evolve.colony_timeline RUN_DIR [--starts 20] [--seed 0] [--tabl
 [--out FILE.png]``: every finalist ``RUN_DIR/colony/best_pop{k}.txt``, under the run's own
 settings (``colony/settings.json``: ``WorldSettings``, ``ColonySettings`` and the gait table
 it recorded, unless ``--table`` names another), into ``RUN_DIR/colony/docks_over_time.png``
-(default) and the curves beside it (``.json``); prints each finalist's final means.
+(default) and the curves beside it (``.json``); prints each finalist's final means and
+hand-offs.
 """
 
 from __future__ import annotations
@@ -115,7 +116,7 @@ class ColonyHandoff:
 
 class _DockWatcher:
     """Follows a colony's events: each robot's docks (dated by their gait step), charging
-    steps and end step."""
+    steps, end step and hand-offs (``ColonyHandoff``)."""
 
     def __init__(self, robots: int, world: WorldSettings) -> None:
         self.p = geo.packed_tuple(world)
@@ -126,7 +127,7 @@ class _DockWatcher:
         self.ended = [0] * robots
         self.dock_point = world.dock_point
         self.mode = ["coverage"] * robots
-        self.blocked: list[int | None] = [None] * robots  # per robot: its open hand-off's
+        self.blocked: list[int | None] = [None] * robots  # open hand-off's cancelled moves
         self.ended_near: set[int] = set()
         self.beside: list[bool | None] = [None] * robots  # at the robot's end, if it ended
         self.handoffs: list[ColonyHandoff] = []
@@ -448,10 +449,10 @@ def main(argv: list[str] | None = None) -> int:
 
 __all__ = [
     "DOCK_GOAL",
-    "NEAR_DOCK",
-    "ColonyHandoff",
     "FIGURE_NAME",
     "LIVE_GOAL_SHARE",
+    "NEAR_DOCK",
+    "ColonyHandoff",
     "RunTimeline",
     "TimelineError",
     "colony_timeline",
