@@ -52,7 +52,7 @@ import numpy as np
 
 from evolve import geometry as geo
 from evolve.codec import read_chromosome
-from evolve.handoff import CUT, DOCKED, collect_handoffs, handoff_rate
+from evolve.handoff import CUT, DOCKED, collect_handoffs, handoff_rate, open_outcome
 from evolve.interpreter import (
     BLOCKED_MARK,
     END_NAMES,
@@ -141,7 +141,7 @@ class _DockWatcher:
         """Close the hand-offs still open when the run ended, with each robot's end."""
         for i, r in enumerate(result.robots):
             if self.blocked[i] is not None:
-                self._close(i, CUT if r.end in LIVE_ENDS else END_NAMES[r.end])
+                self._close(i, open_outcome(r.end))
 
     def __call__(self, ce: ColonyEvent) -> None:
         i, t, e = ce.robot, ce.colony_step, ce.event

@@ -76,6 +76,12 @@ class _Watcher:
         self.last = (e.pose, e.power, e.step)
 
 
+def open_outcome(end: int) -> str:
+    """The outcome of a hand-off still open when its robot's run ended with code ``end``:
+    ``CUT`` by the step limit, else the end's name (``END_NAMES``)."""
+    return CUT if end == END_STEP_LIMIT else END_NAMES[end]
+
+
 def collect_handoffs(
     chromosome: np.ndarray,
     starts: np.ndarray,
@@ -94,8 +100,7 @@ def collect_handoffs(
         res = run(chromosome, tw, mode="coverage", settings=world, max_steps=max_steps,
                   on_event=watch)  # fmt: skip
         if watch.open is not None:  # the run ended before the approach docked
-            end = CUT if res.end == END_STEP_LIMIT else END_NAMES[res.end]
-            watch.found.append(Handoff(*watch.open, end))
+            watch.found.append(Handoff(*watch.open, open_outcome(res.end)))
         out.append(watch.found)
     return out
 
@@ -182,6 +187,7 @@ __all__ = [
     "PosesError",
     "collect_handoffs",
     "handoff_rate",
+    "open_outcome",
     "parse_poses",
     "read_poses",
     "write_handoffs",
