@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from evolve.settings import ColonySettings, WorldSettings
+from evolve.settings import BLOCKING_RULES, ColonySettings, WorldSettings
 from evolve.table import COLUMNS, N_GAITS, GaitTable
 from infra.errors import InputError
 from infra.io import read_json
@@ -102,6 +102,19 @@ class Envelope:
     at all, so it must dock in both the world of §3 and the physics worlds, where the block
     always stops."""
 
+    station_blocking: str = "cancel"
+    """[chosen] What the block does to a move it stops (``station_stops``): ``cancel`` it whole,
+    turn included, or ``slide`` it along the block's face: the move keeps its component along
+    the face, less ``station_friction`` × its component into the block, and not its turn
+    (``geometry.block_slide_end``) — as a robot walking into the MuJoCo block slides along
+    its face without turning (docs/envelope.md). The rule names are
+    ``ColonySettings.blocking``'s."""
+    station_friction: float = 0.5
+    """[chosen] With ``station_blocking`` ``slide``: the friction coefficient of the robot's
+    body against the block (dimensionless, ≥ 0): a slid move's advance along the face is
+    shortened by this × its component into the block. 0.5 fits gaits walked against the
+    MuJoCo block best (docs/envelope.md)."""
+
     warmup_fraction: float = 0.0
     """[chosen] Incremental evolution: the first ``round(warmup_fraction × generations)``
     generations of a stage train in the world of §3, the rest in the envelope (its tests
@@ -158,6 +171,16 @@ class Envelope:
         if p > 0.0 and self.station_stops is not True:
             raise EnvelopeError(f"unseen_stops_p {p:g} needs station_stops true (it is "
                                 f"{self.station_stops!r})")  # fmt: skip
+        f = self.station_friction
+        if isinstance(f, bool) or not isinstance(f, int | float) or not 0.0 <= f < math.inf:
+            raise EnvelopeError(f"station_friction must be a finite number ≥ 0, got {f!r}")
+        object.__setattr__(self, "station_friction", float(f))
+        if self.station_blocking not in BLOCKING_RULES:
+            raise EnvelopeError(f"station_blocking must be one of {', '.join(BLOCKING_RULES)}, "
+                                f"got {self.station_blocking!r}")  # fmt: skip
+        if self.station_blocking != "cancel" and self.station_stops is False:
+            raise EnvelopeError(f"station_blocking {self.station_blocking!r} needs station_stops "
+                                f"true or \"always\" (it is false)")  # fmt: skip
         if self.draw_fitness not in DRAW_FITNESS:
             raise EnvelopeError(f"draw_fitness must be one of {', '.join(DRAW_FITNESS)}, got "
                                 f"{self.draw_fitness!r}")  # fmt: skip
@@ -223,7 +246,10 @@ TRAINING_DEFAULTS = {
     "warmup_fraction": 0.0, "draws_per_start": 1, "station_strata": False, "draw_fitness": "mean",
 }  # fmt: skip
 """How training samples an envelope, at their defaults."""
-LATER_DEFAULTS = {**TRAINING_DEFAULTS, "unseen_stops_p": 0.0}
+LATER_DEFAULTS = {
+    **TRAINING_DEFAULTS, "unseen_stops_p": 0.0, "station_blocking": "cancel",
+    "station_friction": 0.5,
+}  # fmt: skip
 """Fields added after the first envelopes were recorded, at their defaults (left out of
 ``to_dict``)."""
 DRAW_FITNESS = ("mean", "min")

@@ -11,7 +11,8 @@ Two layers:
   kernel compiles these very functions: the interpreter and the kernel share every float
   formula, operation for operation. Other robots of a colony (SPEC §7) are discs:
   ``disc_bits`` (object sensors) and ``too_close`` (cancelled moves). An envelope's station
-  (SPEC §9) is a box: ``block_bits`` (object sensors) and ``block_stops`` (cancelled moves).
+  (SPEC §9) is a box: ``block_bits`` (object sensors), ``block_stops`` (stopped moves) and
+  ``block_slide_end`` (a stopped move slid along it).
   ``wall_bits`` and ``disc_bits_within`` take the activation distance as an argument (an
   envelope draws it per run).
 - public wrappers over ``WorldSettings`` (``apply_gait``, ``light_sensors``, ...).
@@ -380,6 +381,37 @@ def block_stops(x, y, nx, ny, x0, y0, x1, y1, radius):
 
 
 @register_jitable
+def block_slide_end(x, y, nx, ny, x0, y0, x1, y1, friction):
+    """End of a move from centre (x, y) to (nx, ny) that the block [x0, x1] × [y0, y1] stops,
+    slid along it (``Envelope.station_blocking = "slide"``), arena frame, units. With n the
+    unit normal from the block's point nearest (x, y) to (x, y) and d = (nx − x, ny − y): the
+    component d·n < 0 into the block is dropped, and the tangential rest t = d − (d·n) n is
+    shortened by ``friction`` × |d·n| (Coulomb friction of the body against the block; 0 when
+    friction takes it all). Returns (x, y) + t·max(0, |t| − friction |d·n|) / |t|; (x, y)
+    for a start on or in the block or a move straight into it; (nx, ny) for a move not into
+    it (d·n ≥ 0)."""
+    ux = x - min(max(x, x0), x1)
+    uy = y - min(max(y, y0), y1)
+    norm = math.sqrt(ux * ux + uy * uy)
+    if norm == 0.0:
+        return x, y
+    ux = ux / norm
+    uy = uy / norm
+    dx = nx - x
+    dy = ny - y
+    dn = dx * ux + dy * uy
+    if dn >= 0.0:
+        return nx, ny
+    tx = dx - dn * ux
+    ty = dy - dn * uy
+    t = math.sqrt(tx * tx + ty * ty)
+    if t == 0.0:
+        return x, y
+    keep = max(0.0, t + friction * dn) / t
+    return x + keep * tx, y + keep * ty
+
+
+@register_jitable
 def too_close(x, y, ox, oy, min_dist):
     """Whether centres (x, y) and (ox, oy) are closer than ``min_dist`` (SPEC §7 collision:
     two disc radii; exactly ``min_dist`` apart is allowed)."""
@@ -539,6 +571,7 @@ def lit(x: float, y: float, world: WorldSettings = DEFAULT_WORLD) -> tuple[bool,
 __all__ = [
     "apply_gait",
     "block_bits",
+    "block_slide_end",
     "block_stops",
     "box_distance2",
     "disc_bits",

@@ -70,6 +70,7 @@ from evolve.geometry import (
     P_LOW,
     P_MAX_BRANCH,
     block_bits,
+    block_slide_end,
     block_stops,
     disc_bits_within,
     docked,
@@ -92,8 +93,10 @@ from evolve.interpreter import (
 )
 from evolve.settings import BLOCKING_RULES
 from evolve.variation import (
+    E_FRICTION,
     E_RADIUS,
     E_SCATTER,
+    E_SLIDE,
     E_X0,
     E_X1,
     E_Y0,
@@ -185,12 +188,14 @@ def _walk(
     scatter ``key``). A move that would bring the centre closer than ``min_dist`` to another
     robot (rows of ``others`` but ``me``) is cancelled, or with ``slide`` slid along it
     (``_slid``, ``ColonySettings.blocking``); one into a station block that stops is
-    cancelled. A cancelled move keeps the pose; the step still costs and is checked.
+    cancelled, or slid along it keeping the heading (``Envelope.station_blocking``) unless
+    another robot blocks the slid end. A cancelled move keeps the pose; the step still costs
+    and is checked.
     ``run_env`` = ``_run_env``'s tuple. Returns (x, y, h, power, lo, hi, squares, inner,
-    end, blocked), end = −1 if the run goes on, blocked when another robot blocked the move
-    (cancelled or slid) or the station block cancelled it.
+    end, blocked), end = −1 if the run goes on, blocked when another robot or the station
+    block blocked the move (cancelled or slid).
     """
-    scale, stops, x0, y0, x1, y1, radius = run_env
+    scale, stops, x0, y0, x1, y1, radius, slide_block, friction = run_env
     f, t, dh = table[gait, 0], table[gait, 1], table[gait, 2]
     if scale > 0.0:
         f, t, dh = scattered_row(
@@ -202,7 +207,12 @@ def _walk(
     if slide and blocked:
         nx, ny, cancel = _slid(x, y, nx, ny, others, me, min_dist)
     if stops and not cancel and block_stops(x, y, nx, ny, x0, y0, x1, y1, radius):
-        cancel = blocked = True
+        blocked = True
+        cancel = True
+        if slide_block:
+            nx, ny = block_slide_end(x, y, nx, ny, x0, y0, x1, y1, friction)
+            nh = h
+            cancel = _blocked(nx, ny, others, me, min_dist)
     if not cancel:
         x, y, h = nx, ny, nh
     power = power - p[P_GAIT_COST + gait]
@@ -222,11 +232,13 @@ def _walk(
 
 @njit(cache=True, inline="always")
 def _run_env(env, station):
-    """(scatter scale, whether the block stops, x0, y0, x1, y1, radius) of a run from the
-    packed envelope ``env`` (``evolve.variation.E_*``) and its ``station`` bits: scalars that
-    ``_walk`` reads."""
+    """(scatter scale, whether the block stops, x0, y0, x1, y1, radius, whether it slides,
+    friction) of a run from the packed envelope ``env`` (``evolve.variation.E_*``) and its
+    ``station`` bits: scalars that ``_walk`` reads."""
     stops = (station & STATION_STOPS) != 0
-    return env[E_SCATTER], stops, env[E_X0], env[E_Y0], env[E_X1], env[E_Y1], env[E_RADIUS]
+    x0, y0, x1, y1 = env[E_X0], env[E_Y0], env[E_X1], env[E_Y1]
+    slides = env[E_SLIDE] != 0.0
+    return env[E_SCATTER], stops, x0, y0, x1, y1, env[E_RADIUS], slides, env[E_FRICTION]
 
 
 @njit(cache=True, inline="always")

@@ -46,10 +46,11 @@ from evolve.table import N_GAITS, validate_table
 
 STREAM_SCATTER, STREAM_BIAS, STREAM_REACH, STREAM_STATION, STREAM_STOPS = 1, 2, 3, 4, 5
 """Stream tags: what a draw of a run is for."""
-E_SCATTER, E_X0, E_Y0, E_X1, E_Y1, E_RADIUS = range(6)
+E_SCATTER, E_X0, E_Y0, E_X1, E_Y1, E_RADIUS, E_SLIDE, E_FRICTION = range(8)
 """Layout of the packed envelope vector the kernels read (``Variation.packed``): the scatter
-scale, the block's box (units) and the robot radius (units) that the block stops."""
-E_SIZE = 6
+scale, the block's box (units), the robot radius (units) that the block stops, 1 when a move
+it stops slides along it (``Envelope.station_blocking``) else 0, and the slide's friction."""
+E_SIZE = 8
 STATION_SEEN, STATION_STOPS = 1, 2
 """Bits of a run's station (``Variation.station``): the block is there for the object sensors;
 it stops motion."""
@@ -196,6 +197,8 @@ class Variation:
         out[E_SCATTER] = self.envelope.scatter_scale
         out[E_X0], out[E_Y0], out[E_X1], out[E_Y1] = self.block
         out[E_RADIUS] = self.radius
+        out[E_SLIDE] = self.envelope.station_blocking == "slide"
+        out[E_FRICTION] = self.envelope.station_friction
         return out
 
     def kernel_draws(self, starts: int, robots: int) -> KernelDraws:
@@ -234,6 +237,7 @@ class RobotRun:
             self.rows = [tuple(float(v) for v in row) for row in table]
             self.reach = p[geo.P_OBJ_RANGE]
             self.scale, self.block, self.stops = 0.0, None, False
+            self.slides = False
             return
         d = variation.robot(start, robot)
         self.rows = [tuple(float(v) for v in row) for row in d.rows]
@@ -245,6 +249,8 @@ class RobotRun:
         self.stops = bool(station & STATION_STOPS)
         self.stop_block = variation.block
         self.radius = variation.radius
+        self.slides = variation.envelope.station_blocking == "slide"
+        self.friction = variation.envelope.station_friction
 
     def row(self, gait: int) -> tuple[float, float, float]:
         """The row of the next cycle of ``gait`` (counts the cycle)."""
@@ -255,9 +261,18 @@ class RobotRun:
         self.cycle += 1
         return f, t, dh
 
-    def stopped(self, x: float, y: float, nx: float, ny: float) -> bool:
-        """Whether the station block cancels the move from (x, y) to (nx, ny)."""
-        return self.stops and geo.block_stops(x, y, nx, ny, *self.stop_block, self.radius)
+    def station_move(
+        self, x: float, y: float, h: float, nx: float, ny: float, nh: float
+    ) -> tuple[float, float, float, bool]:
+        """The move from pose (x, y, h) to (nx, ny, nh) past the station block: (end pose,
+        blocked). A move the block stops ends at (x, y, h) (cancelled), or slid along the
+        block with the heading kept (``geometry.block_slide_end``)."""
+        if not (self.stops and geo.block_stops(x, y, nx, ny, *self.stop_block, self.radius)):
+            return nx, ny, nh, False
+        if not self.slides:
+            return x, y, h, True
+        sx, sy = geo.block_slide_end(x, y, nx, ny, *self.stop_block, self.friction)
+        return sx, sy, h, True
 
     def object_bits(self, x: float, y: float, h: float) -> int:
         """Object-sensor bits of the walls and the station block at (x, y, h)."""
@@ -277,9 +292,11 @@ def variation_for(
 
 
 __all__ = [
+    "E_FRICTION",
     "E_RADIUS",
     "E_SCATTER",
     "E_SIZE",
+    "E_SLIDE",
     "E_X0",
     "E_X1",
     "E_Y0",

@@ -78,8 +78,8 @@ class TableWorld:
     ``table`` rows are (F cm, T cm, dH deg) (a ``GaitTable`` or an array); (x, y) in arena
     units, heading ``h`` in degrees (wrapped into [0, 360)). ``envelope`` varies the world
     (SPEC §9) with the draws of ``envelope_key`` (seed, generation or test) at start index
-    ``start``, as ``evolve.evaluate`` does for that column; a move into a seen station block
-    that stops motion is cancelled (``step`` returns True).
+    ``start``, as ``evolve.evaluate`` does for that column; a move into a station block that
+    stops motion is cancelled or slid along it (``step`` returns True).
     """
 
     def __init__(
@@ -106,12 +106,12 @@ class TableWorld:
         return (self._x, self._y, self._h)
 
     def step(self, gait: int) -> bool:
-        """Apply one cycle of ``gait`` (0–15); True when the station block cancelled it."""
-        nx, ny, nh = geometry.move(self._x, self._y, self._h, *self._run.row(gait))
-        if self._run.stopped(self._x, self._y, nx, ny):
-            return True
-        self._x, self._y, self._h = nx, ny, nh
-        return False
+        """Apply one cycle of ``gait`` (0–15); True when the station block stopped it
+        (cancelled, or slid along it: ``Envelope.station_blocking``)."""
+        pose = self._x, self._y, self._h
+        end = geometry.move(*pose, *self._run.row(gait))
+        self._x, self._y, self._h, blocked = self._run.station_move(*pose, *end)
+        return blocked
 
     def object_sensors(self) -> tuple[bool, bool]:
         """(left, right) object sensors."""
@@ -222,26 +222,32 @@ class TableColony:
         """Apply one cycle of ``gait`` to robot ``i``. A move that would end closer than two
         radii to another robot is cancelled, or slid along the contact tangent, as
         ``ColonySettings.blocking`` says; a move into a station block that stops is
-        cancelled. Returns True when another robot blocked the move (cancelled or slid) or
-        the station block cancelled it."""
+        cancelled or slid along it (``Envelope.station_blocking``), and a slid end that
+        another robot blocks is cancelled. Returns True when another robot or the station
+        block blocked the move (cancelled or slid)."""
         x, y, h = self._poses[i]
         nx, ny, nh = geometry.move(x, y, h, *self._runs[i].row(gait))
-        blockers = [
-            (ox, oy)
-            for j, (ox, oy, _) in enumerate(self._poses)
-            if j != i and geometry.too_close(nx, ny, ox, oy, self._min_dist)
-        ]
+        blockers = self._blockers(i, nx, ny)
         if blockers:
             if not self._slide or len(blockers) > 1:
                 return True
             nx, ny = geometry.slide_end(x, y, nx, ny, *blockers[0])
-            for j, (ox, oy, _) in enumerate(self._poses):
-                if j != i and geometry.too_close(nx, ny, ox, oy, self._min_dist):
-                    return True
-        if self._runs[i].stopped(x, y, nx, ny):
+            if self._blockers(i, nx, ny):
+                return True
+        run = self._runs[i]
+        nx, ny, nh, by_block = run.station_move(x, y, h, nx, ny, nh)
+        if by_block and run.slides and self._blockers(i, nx, ny):
             return True
         self._poses[i] = (nx, ny, nh)
-        return bool(blockers)
+        return bool(blockers) or by_block
+
+    def _blockers(self, i: int, x: float, y: float) -> list[tuple[float, float]]:
+        """Centres of the robots but ``i`` closer than two radii to (x, y)."""
+        return [
+            (ox, oy)
+            for j, (ox, oy, _) in enumerate(self._poses)
+            if j != i and geometry.too_close(x, y, ox, oy, self._min_dist)
+        ]
 
     def object_sensors(self, i: int) -> tuple[bool, bool]:
         x, y, h = self._poses[i]

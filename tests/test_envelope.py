@@ -67,10 +67,12 @@ IN_THE_WAY = Envelope(
 """The block seen in half the runs and in the way in every run, as in physics."""
 HALF_IN_THE_WAY = dataclasses.replace(IN_THE_WAY, station_stops=True, unseen_stops_p=0.5)
 """The block in the way in every seen run and in half the unseen ones."""
+SLIDING = dataclasses.replace(HALF_IN_THE_WAY, station_blocking="slide")
+"""As ``HALF_IN_THE_WAY``, a move the block stops sliding along it."""
 EVERY_ENVELOPE = pytest.mark.parametrize(
     "envelope",
-    [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY],
-    ids=["everything", "loud", "in the way", "half in the way"],
+    [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY, SLIDING],
+    ids=["everything", "loud", "in the way", "half in the way", "sliding"],
 )
 """The kernel = interpreter cases: every aspect, loud scales, the block's stop rules."""
 KEY = (7, 3)
@@ -78,6 +80,7 @@ SCATTER_ONLY = Envelope(scatter_scale=1.0)
 BIAS_ONLY = Envelope(bias_scale=1.0)
 BLOCK_ONLY = Envelope(station_seen_p=1.0)
 STOPS_ONLY = Envelope(station_seen_p=1.0, station_stops=True)
+SLIDES_ONLY = dataclasses.replace(STOPS_ONLY, station_blocking="slide")
 OBJECT_BOTH_THEN_BACK = chrom(
     gene("00", B(3, 1), G(7), G(7), G(7)), gene("00", G(15), G(15), G(15), G(15))
 )
@@ -455,6 +458,64 @@ def test_an_unseen_block_stops_in_about_unseen_stops_p_of_the_runs():
     assert colony.step(0, 0) is True  # one station for the colony
 
 
+def test_a_move_the_block_stops_slides_along_its_face_and_round_its_corner():
+    """``station_blocking = "slide"``: the stopped move loses its component into the block, its
+    component along the face shrinks by ``station_friction`` (0.5) × the lost one, and the
+    heading stays. At the west face (x = 480) the robot keeps its x and walks on north; at the
+    north-west corner (480, 280) the normal points from the corner to the robot."""
+    x0, _, _, y1 = station_block(WORLD)
+    for pose in [(460.0, 250.0, 45.0), (470.0, 292.0, 100.0)]:
+        open_world = TableWorld(PAPER_TABLE, *pose)
+        open_world.step(0)
+        d = np.array(open_world.pose()[:2]) - pose[:2]
+        cx, cy = max(pose[0], x0), min(pose[1], y1)  # the block's point nearest the start
+        n = np.array([pose[0] - cx, pose[1] - cy]) / math.hypot(pose[0] - cx, pose[1] - cy)
+        into = d @ n
+        assert into < 0.0  # the open move ends 12.4 and 10.8 units from the block: stopped
+        along = d - into * n
+        want = pose[:2] + along * (np.linalg.norm(along) + 0.5 * into) / np.linalg.norm(along)
+        world = TableWorld(PAPER_TABLE, *pose, envelope=SLIDES_ONLY)
+        assert world.step(0) is True  # blocked: slid, not cancelled
+        np.testing.assert_allclose(world.pose(), (*want, pose[2]), rtol=0, atol=1e-12)
+        cancel = TableWorld(PAPER_TABLE, *pose, envelope=STOPS_ONLY)
+        assert cancel.step(0) is True and cancel.pose() == pose
+    # at the face: d = (7.64, 8.77), 7.64 into the block, so 8.77 − 3.82 = 4.95 units north
+    face = TableWorld(PAPER_TABLE, 460.0, 250.0, 45.0, envelope=SLIDES_ONLY)
+    face.step(0)
+    np.testing.assert_allclose(face.pose(), (460.0, 254.95, 45.0), rtol=0, atol=0.01)
+    no_friction = dataclasses.replace(SLIDES_ONLY, station_friction=0.0)
+    face = TableWorld(PAPER_TABLE, 460.0, 250.0, 45.0, envelope=no_friction)
+    face.step(0)
+    np.testing.assert_allclose(face.pose(), (460.0, 258.77, 45.0), rtol=0, atol=0.01)
+    head_on = TableWorld(PAPER_TABLE, 462.0, 250.0, 90.0, envelope=SLIDES_ONLY)
+    assert head_on.step(0) is True and head_on.pose()[:2] == (462.0, 250.0)  # friction holds
+    # the kernel slides the same runs: three cycles up the face, the step still costs
+    walk = chrom(gene("00", G(0), G(0), G(0), G(0)))
+    ev = evaluate(walk[None], np.array([(460.0, 250.0, 45.0)]), table=PAPER_TABLE,
+                  mode="coverage", max_steps=3, envelope=SLIDES_ONLY)  # fmt: skip
+    r = run(walk, TableWorld(PAPER_TABLE, 460.0, 250.0, 45.0, envelope=SLIDES_ONLY),
+            mode="coverage", max_steps=3)  # fmt: skip
+    assert r.collisions == 3 and r.final_pose[0] == 460.0 and r.final_pose[2] == 45.0
+    assert tuple(ev.final_pose[0, 0]) == r.final_pose and ev.steps[0, 0] == 3
+
+
+def test_a_slid_move_that_another_robot_blocks_is_cancelled():
+    """In a colony the end of a move slid along the block must also be clear of the others."""
+    pose = (460.0, 250.0, 45.0)
+    free = TableColony(PAPER_TABLE, np.array([pose, (300.0, 100.0, 0.0)]), envelope=SLIDES_ONLY)
+    assert free.step(0, 0) is True
+    np.testing.assert_allclose(free.pose(0), (460.0, 254.95, 45.0), rtol=0, atol=0.01)
+    # robot 1 is 32.8 units from the start and 32.6 from the open move's end, but 29.0 from
+    # the slid end: closer than two radii (30), so the slid move is cancelled
+    crowded = np.array([pose, (440.0, 276.0, 180.0)])
+    colony = TableColony(PAPER_TABLE, crowded, envelope=SLIDES_ONLY)
+    assert colony.step(0, 0) is True and colony.pose(0) == pose
+    ev = evaluate_colony(chrom(gene("00", G(0), G(0), G(0), G(0)))[None], crowded[None],
+                         table=PAPER_TABLE, mode="coverage", max_steps=1,
+                         colony=ColonySettings(robots=2), envelope=SLIDES_ONLY)  # fmt: skip
+    assert tuple(ev.final_pose[0, 0, 0]) == pose
+
+
 # --------------------------------------------------------------------------- inputs
 
 
@@ -485,6 +546,9 @@ def test_named_and_file_envelopes_load(tmp_path):
         ({"station_stops": True, "unseen_stops_p": "half"}, "unseen_stops_p must be a probability"),
         ({"unseen_stops_p": 0.5}, "unseen_stops_p 0.5 needs station_stops true"),
         ({"station_stops": "always", "unseen_stops_p": 0.5}, "needs station_stops true"),
+        ({"station_stops": True, "station_blocking": "push"}, "station_blocking must be one of"),
+        ({"station_blocking": "slide"}, "station_blocking 'slide' needs station_stops"),
+        ({"station_stops": True, "station_friction": -0.5}, "station_friction must be a finite"),
         ({"draws_per_start": 1.5}, "draws_per_start must be an integer ≥ 1"),
         ({"warmup_fraction": -0.1}, "warmup_fraction must be ≥ 0"),
         ({"station_strata": "yes"}, "station_strata must be true or false"),

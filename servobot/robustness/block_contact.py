@@ -1,0 +1,173 @@
+"""Which table rule for the station block predicts a robot walking into it in MuJoCo (issue 16):
+``Envelope.station_blocking`` ``cancel`` against ``slide`` at a sweep of ``station_friction``.
+
+    python -m servobot.robustness.block_contact [--table runs/cal/gait_table.json] \\
+        [--frictions 0,0.25,0.4,0.5,0.6,0.75,1] [--cycles 3] [--out runs/block_contact]
+
+From each pose of a set in front of the block, the robot walks ``--cycles`` cycles of one gait
+in the physics world ``shipped`` (whose low block stops it) and in the table world with the
+block always in the way, under each rule. A case counts when the table's block stops at
+least one of its moves (under ``cancel``); its errors are the distance between the table's
+and physics' final positions (units) and between their headings (degrees). Two pose sets:
+``tuning`` (on which the friction was chosen) and ``held-out`` (other poses, every gait).
+Writes ``OUT/block_contact.json``, ``.md`` and ``.png`` (mean position error against the
+friction, both sets, ``cancel`` as a line).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from evolve.envelope import STOPS_ALWAYS, Envelope
+from evolve.geometry import wrap180
+from evolve.table import N_GAITS, PAPER_TABLE, load_table
+from evolve.world import TableWorld
+from infra.io import atomic_write, write_report
+
+Pose = tuple[float, float, float]
+
+HEADINGS = (30.0, 60.0, 90.0, 120.0, 150.0)
+POSE_SETS: dict[str, tuple[list[Pose], tuple[int, ...]]] = {
+    "tuning": (
+        list(itertools.product((452.0, 456.0, 460.0), (235.0, 255.0, 275.0), HEADINGS)),
+        (0, 1, 5, 9, 12, 13),
+    ),
+    "held-out": (
+        list(itertools.product((454.0, 458.0), (225.0, 245.0, 265.0), (45.0, 75.0, 105.0, 135.0))),
+        tuple(range(N_GAITS)),
+    ),
+}
+"""Start poses (x, y units; heading deg) in front of the block (x ≥ 480, |y − 250| ≤ 30) and
+the gaits walked from each."""
+FRICTIONS = (0.0, 0.25, 0.4, 0.5, 0.6, 0.75, 1.0)
+"""``station_friction`` values swept by default."""
+DPI = 130
+
+
+@dataclass(frozen=True)
+class ContactErrors:
+    """One rule's errors over a pose set's cases: (n, 2) position error (units), heading error
+    (deg)."""
+
+    rule: str
+    errors: np.ndarray
+
+    def summary(self) -> dict[str, float]:
+        out = {}
+        for i, what in enumerate(("position", "heading")):
+            out[f"{what}_mean"] = float(self.errors[:, i].mean())
+            out[f"{what}_median"] = float(np.median(self.errors[:, i]))
+        return out
+
+
+def rules(frictions: Sequence[float]) -> dict[str, Envelope]:
+    """The table worlds compared: ``cancel`` and ``slide`` at each friction, the block always
+    in the way (as in physics) and unseen."""
+    out = {"cancel": Envelope(station_stops=STOPS_ALWAYS)}
+    for mu in frictions:
+        out[f"slide {mu:g}"] = Envelope(station_stops=STOPS_ALWAYS, station_blocking="slide",
+                                        station_friction=float(mu))  # fmt: skip
+    return out
+
+
+def contact_errors(
+    table: np.ndarray, poses: Sequence[Pose], gaits: Sequence[int], envelopes: dict[str, Envelope],
+    cycles: int = 3,
+) -> list[ContactErrors]:  # fmt: skip
+    """Each rule's errors against physics over the cases (pose × gait) whose block stops a
+    move under the first rule of ``envelopes`` (``cancel``)."""
+    from servo_mj.world.physics_world import PhysicsWorld  # physics only where it is run
+
+    errors: dict[str, list[tuple[float, float]]] = {name: [] for name in envelopes}
+    first = next(iter(envelopes))
+    for pose, gait in itertools.product(poses, gaits):
+        phys = PhysicsWorld(*pose)
+        tabs = {name: TableWorld(table, *pose, envelope=env) for name, env in envelopes.items()}
+        stopped = False
+        for _ in range(cycles):
+            phys.step(gait)
+            for name, tab in tabs.items():
+                stopped |= tab.step(gait) and name == first
+        if not stopped:
+            continue
+        px, py, ph = phys.pose()
+        for name, tab in tabs.items():
+            x, y, h = tab.pose()
+            errors[name].append((float(np.hypot(x - px, y - py)), abs(wrap180(h - ph))))
+    return [ContactErrors(name, np.array(e, dtype=float).reshape(-1, 2))
+            for name, e in errors.items()]  # fmt: skip
+
+
+def report(results: dict[str, list[ContactErrors]], cycles: int) -> tuple[dict, str]:
+    """(JSON document, markdown) of each pose set's per-rule summaries."""
+    doc = {"cycles": cycles, "sets": {}}
+    lines = [f"# The station block's rule against physics ({cycles} cycles per case)", ""]
+    for name, rows in results.items():
+        n = len(rows[0].errors)
+        doc["sets"][name] = {"cases": n, "rules": {r.rule: r.summary() for r in rows}}
+        lines += [f"## {name}: {n} cases the block stops", "",
+                  "| rule | position error, mean / median (units) | heading error (°) |",
+                  "|---|---|---|"]  # fmt: skip
+        for r in rows:
+            s = r.summary()
+            lines.append(f"| {r.rule} | {s['position_mean']:.2f} / {s['position_median']:.2f} | "
+                         f"{s['heading_mean']:.2f} / {s['heading_median']:.2f} |")  # fmt: skip
+        lines.append("")
+    return doc, "\n".join(lines)
+
+
+def plot(results: dict[str, list[ContactErrors]], frictions: Sequence[float], path: Path) -> None:
+    """Mean position error against ``station_friction`` per pose set, ``cancel`` dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for (name, rows), colour in zip(results.items(), ("C0", "C1"), strict=False):
+        by_rule = {r.rule: r.summary()["position_mean"] for r in rows}
+        ax.plot(frictions, [by_rule[f"slide {mu:g}"] for mu in frictions], "o-", color=colour,
+                label=f"slide, {name}")  # fmt: skip
+        ax.axhline(by_rule["cancel"], color=colour, ls="--", label=f"cancel, {name}")
+    ax.set_xlabel("station_friction")
+    ax.set_ylabel("mean position error vs physics (units)")
+    ax.set_title("A robot walking into the station block: table vs MuJoCo")
+    ax.legend(fontsize=8)
+    try:
+        atomic_write(path, lambda p: fig.savefig(p, dpi=DPI, bbox_inches="tight"))
+    finally:
+        plt.close(fig)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m servobot.robustness.block_contact",
+                                 description=__doc__.split("\n")[0])  # fmt: skip
+    ap.add_argument("--table", help="calibrated gait table (default: the paper's)")
+    ap.add_argument("--frictions", default=",".join(f"{f:g}" for f in FRICTIONS))
+    ap.add_argument("--cycles", type=int, default=3)
+    ap.add_argument("--out", type=Path, default=Path("runs/block_contact"))
+    args = ap.parse_args(argv)
+    try:
+        frictions = [float(f) for f in args.frictions.split(",")]
+        envelopes = rules(frictions)
+    except ValueError as exc:
+        ap.error(f"--frictions: {exc}")
+    if args.cycles < 1:
+        ap.error(f"--cycles must be ≥ 1, got {args.cycles}")
+    table = PAPER_TABLE if args.table is None else load_table(args.table).values
+    results = {name: contact_errors(table, poses, gaits, envelopes, args.cycles)
+               for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
+    doc, md = report(results, args.cycles)
+    write_report(args.out, "block_contact", doc, md)
+    plot(results, frictions, args.out / "block_contact.png")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
