@@ -14,7 +14,12 @@ of §3 bit for bit:
    (``station_block``) that the object sensors see, and with ``station_stops`` also a
    barrier;
 4. sensor reach: the object sensors' activation distance is drawn per run uniformly in
-   [range − ``reach_units``, range + ``reach_units``] (range = ``WorldSettings.object_range``).
+   [range − ``reach_units``, range + ``reach_units``] (range = ``WorldSettings.object_range``);
+5. pace and turn [beyond SPEC §9's four]: at a run's start every gait's F and T are scaled by
+   one factor drawn uniformly in [1 − ``pace_spread``, 1 + ``pace_spread``] and every dH by
+   one in [1 − ``turn_spread``, 1 + ``turn_spread``], held for the run: a floor, a load or a
+   servo that makes every cycle go further or turn less (the robot variants' calibrations,
+   docs/envelope.md).
 
 How training samples the envelope is part of it too: ``draws_per_start`` draws of every
 training start (their mean is the run's fitness) and a ``warmup_fraction`` of a stage's first
@@ -102,6 +107,12 @@ class Envelope:
     at all, so it must dock in both the world of §3 and the physics worlds, where the block
     always stops."""
 
+    pace_spread: float = 0.0
+    """[chosen] Pace: every gait's F and T × one factor per run and robot, uniform in
+    [1 − this, 1 + this] (dimensionless, in [0, 1)); after the bias, before the scatter."""
+    turn_spread: float = 0.0
+    """[chosen] Turn: every gait's dH × one factor per run and robot, uniform in
+    [1 − this, 1 + this] (dimensionless, in [0, 1))."""
     station_blocking: str = "cancel"
     """[chosen] What the block does to a move it stops (``station_stops``): ``cancel`` it whole,
     turn included, or ``slide`` it along the block's face: the move keeps its component along
@@ -143,7 +154,7 @@ class Envelope:
 
     def __post_init__(self) -> None:
         for name in ("scatter_scale", "bias_scale", "station_seen_p", "reach_units",
-                     "warmup_fraction"):
+                     "pace_spread", "turn_spread", "warmup_fraction"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise EnvelopeError(f"{name} must be a finite number, got {v!r}")
@@ -153,8 +164,9 @@ class Envelope:
         d = self.draws_per_start
         if isinstance(d, bool) or not isinstance(d, int) or d < 1:
             raise EnvelopeError(f"draws_per_start must be an integer ≥ 1, got {d!r}")
-        if self.warmup_fraction >= 1.0:
-            raise EnvelopeError(f"warmup_fraction must be in [0, 1), got {self.warmup_fraction!r}")
+        for name in ("pace_spread", "turn_spread", "warmup_fraction"):
+            if getattr(self, name) >= 1.0:
+                raise EnvelopeError(f"{name} must be in [0, 1), got {getattr(self, name)!r}")
         if self.station_seen_p > 1.0:
             raise EnvelopeError(f"station_seen_p must be a probability in [0, 1], got "
                                 f"{self.station_seen_p!r}")  # fmt: skip
@@ -248,7 +260,7 @@ TRAINING_DEFAULTS = {
 """How training samples an envelope, at their defaults."""
 LATER_DEFAULTS = {
     **TRAINING_DEFAULTS, "unseen_stops_p": 0.0, "station_blocking": "cancel",
-    "station_friction": 0.5,
+    "station_friction": 0.5, "pace_spread": 0.0, "turn_spread": 0.0,
 }  # fmt: skip
 """Fields added after the first envelopes were recorded, at their defaults (left out of
 ``to_dict``)."""

@@ -8,7 +8,8 @@ and of where it is used (``evolve.draws``), never of a stream's state:
 
 - a robot's run key: the key folded, then the start index s, then the robot r (0 alone);
 - per run (``RobotDraws``, from the run key and a stream tag): the bias of each gait's row,
-  ``STREAM_BIAS`` (triple g of ``normal3``), and the activation distance, ``STREAM_REACH``;
+  ``STREAM_BIAS`` (triple g of ``normal3``), the activation distance, ``STREAM_REACH``, and
+  the pace and turn factors, words 0 and 1 of ``STREAM_PACE``;
 - per run of the whole colony: whether the station block is there, ``STREAM_STATION`` of robot
   0's run key, and whether an unseen block stops motion, ``STREAM_STOPS`` of it (one station
   for every robot: ``Variation.station``);
@@ -44,7 +45,7 @@ from evolve.envelope import (
 from evolve.settings import WorldSettings
 from evolve.table import N_GAITS, validate_table
 
-STREAM_SCATTER, STREAM_BIAS, STREAM_REACH, STREAM_STATION, STREAM_STOPS = 1, 2, 3, 4, 5
+STREAM_SCATTER, STREAM_BIAS, STREAM_REACH, STREAM_STATION, STREAM_STOPS, STREAM_PACE = range(1, 7)
 """Stream tags: what a draw of a run is for."""
 E_SCATTER, E_X0, E_Y0, E_X1, E_Y1, E_RADIUS, E_SLIDE, E_FRICTION = range(8)
 """Layout of the packed envelope vector the kernels read (``Variation.packed``): the scatter
@@ -160,6 +161,10 @@ class Variation:
                     rows[g, c] = (
                         float(self.table[g, c]) + env.bias_scale * float(self.sigma[g, c]) * z[c]
                     )
+        for cols, spread, word in (([0, 1], env.pace_spread, 0), ([2], env.turn_spread, 1)):
+            if spread > 0.0:
+                u = unit(absorb(absorb(key, STREAM_PACE), word))
+                rows[:, cols] = rows[:, cols] * (1.0 + spread * (2.0 * u - 1.0))
         reach = self.object_range
         if env.reach_units > 0.0:
             reach = reach + env.reach_units * (2.0 * unit(absorb(key, STREAM_REACH)) - 1.0)

@@ -67,12 +67,14 @@ IN_THE_WAY = Envelope(
 """The block seen in half the runs and in the way in every run, as in physics."""
 HALF_IN_THE_WAY = dataclasses.replace(IN_THE_WAY, station_stops=True, unseen_stops_p=0.5)
 """The block in the way in every seen run and in half the unseen ones."""
-SLIDING = dataclasses.replace(HALF_IN_THE_WAY, station_blocking="slide")
-"""As ``HALF_IN_THE_WAY``, a move the block stops sliding along it."""
+SLIDING = dataclasses.replace(
+    HALF_IN_THE_WAY, station_blocking="slide", pace_spread=0.15, turn_spread=0.3
+)
+"""As ``HALF_IN_THE_WAY``, a move the block stops sliding along it, pace and turn drawn."""
 EVERY_ENVELOPE = pytest.mark.parametrize(
     "envelope",
     [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY, SLIDING],
-    ids=["everything", "loud", "in the way", "half in the way", "sliding"],
+    ids=["everything", "loud", "in the way", "half in the way", "sliding, paced"],
 )
 """The kernel = interpreter cases: every aspect, loud scales, the block's stop rules."""
 KEY = (7, 3)
@@ -388,6 +390,36 @@ def test_bias_is_held_for_a_run_and_spread_as_sigma_over_runs():
     assert np.all(np.abs(offsets.std(axis=0)[ok] / sigma[ok] - 1.0) < 0.08)
 
 
+def test_pace_and_turn_scale_every_gait_by_one_factor_per_run():
+    """``pace_spread`` 0.2: F and T of all 16 gaits × one factor in [0.8, 1.2] per run and
+    robot, uniform; ``turn_spread`` 0.3: dH × another in [0.7, 1.3]; held by the table world
+    for the whole run."""
+    env = Envelope(pace_spread=0.2, turn_spread=0.3)
+    var = Variation.of(env, PAPER_TABLE, WORLD, KEY, 15.0)
+    moving = np.abs(PAPER_TABLE) > 0.05
+    factors = []
+    for s in range(2000):
+        rows = var.robot(s, s % 3).rows
+        ratio = np.where(moving, rows / np.where(moving, PAPER_TABLE, 1.0), np.nan)
+        pace, turn = np.nanmean(ratio[:, :2]), np.nanmean(ratio[:, 2])
+        np.testing.assert_allclose(ratio[:, :2][moving[:, :2]], pace, rtol=1e-12)
+        np.testing.assert_allclose(ratio[:, 2][moving[:, 2]], turn, rtol=1e-12)
+        factors.append((pace, turn))
+    f = np.array(factors)
+    assert f[:, 0].min() >= 0.8 and f[:, 0].max() < 1.2 and f[:, 1].min() >= 0.7
+    # uniform: mean 1, std spread / √3, the two factors independent
+    assert abs(f.mean(axis=0) - 1.0).max() < 0.01
+    np.testing.assert_allclose(f.std(axis=0), np.array([0.2, 0.3]) / math.sqrt(3), rtol=0.05)
+    assert abs(np.corrcoef(f.T)[0, 1]) < 0.06
+    assert var.robot(5, 1).rows.tolist() != var.robot(5, 2).rows.tolist()  # per robot
+    # the table world walks the run's rows: 8 cycles of gait 8 turn 8 × dH × turn
+    world = TableWorld(PAPER_TABLE, 250.0, 100.0, 0.0, envelope=env, envelope_key=KEY, start=5)
+    for _ in range(8):
+        world.step(8)
+    rows = var.robot(5, 0).rows
+    assert world.pose()[2] == pytest.approx(8 * rows[8, 2] % 360.0, abs=1e-9)
+
+
 def test_station_stops_cancels_a_move_into_the_block():
     pose = (460.0, 250.0, 90.0)  # gait 0 would bring the centre to 471.6: 8.4 from the block
     world = TableWorld(PAPER_TABLE, *pose, envelope=STOPS_ONLY)
@@ -549,6 +581,8 @@ def test_named_and_file_envelopes_load(tmp_path):
         ({"station_stops": True, "station_blocking": "push"}, "station_blocking must be one of"),
         ({"station_blocking": "slide"}, "station_blocking 'slide' needs station_stops"),
         ({"station_stops": True, "station_friction": -0.5}, "station_friction must be a finite"),
+        ({"pace_spread": 1.0}, r"pace_spread must be in \[0, 1\)"),
+        ({"turn_spread": -0.1}, "turn_spread must be ≥ 0"),
         ({"draws_per_start": 1.5}, "draws_per_start must be an integer ≥ 1"),
         ({"warmup_fraction": -0.1}, "warmup_fraction must be ≥ 0"),
         ({"station_strata": "yes"}, "station_strata must be true or false"),
