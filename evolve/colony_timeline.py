@@ -30,11 +30,18 @@ one colony step later (``"charge"`` events), or never when the dock was the robo
 allowed gait step or the colony-step limit came first, so the dock is dated by its gait
 step. Every run checks the count against ``RunResult.docks`` of each robot.
 
+**What the other robots do to an approach** (``--others``, a diagnostic outside SPEC §7): the
+same runs with the other robots ``unseen`` by the object sensors (they still block),
+``passable`` (seen, never blocking a move), or both (``unseen-passable``); the station still
+refuses a robot while another charges. The colony's hand-off rate in each against ``as-is``
+says which of the two costs the navigation section its approaches (``OTHERS``).
+
 Run: ``python -m evolve.colony_timeline RUN_DIR [--starts 20] [--seed 0] [--table paper|PATH]
-[--out FILE.png]``: every finalist ``RUN_DIR/colony/best_pop{k}.txt``, under the run's own
-settings (``colony/settings.json``: ``WorldSettings``, ``ColonySettings`` and the gait table
-it recorded, unless ``--table`` names another), into ``RUN_DIR/colony/docks_over_time.png``
-(default) and the curves beside it (``.json``); prints each finalist's final means and
+[--others as-is|unseen|passable|unseen-passable] [--out FILE.png]``: every finalist
+``RUN_DIR/colony/best_pop{k}.txt``, under the run's own settings (``colony/settings.json``:
+``WorldSettings``, ``ColonySettings`` and the gait table it recorded, unless ``--table`` names
+another), into ``RUN_DIR/colony/docks_over_time.png`` (``docks_over_time-OTHERS.png`` but for
+``as-is``) and the curves beside it (``.json``); prints each finalist's final means and
 hand-offs.
 """
 
@@ -51,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from evolve import geometry as geo
-from evolve.codec import read_chromosome
+from evolve.codec import OBJECT_LEFT, OBJECT_RIGHT, read_chromosome
 from evolve.handoff import CUT, DOCKED, collect_handoffs, handoff_rate, open_outcome
 from evolve.interpreter import (
     BLOCKED_MARK,
@@ -77,6 +84,34 @@ NEAR_DOCK = 80.0
 units of the dock point before it failed, units."""
 FIGURE_NAME = "docks_over_time.png"
 """The figure's default name in ``RUN_DIR/colony``; the curves go beside it as ``.json``."""
+
+
+class _Unseen(TableColony):
+    """The other robots are not in the object sensors (walls and station block only)."""
+
+    def object_sensors(self, i: int) -> tuple[bool, bool]:
+        x, y, h = self.pose(i)
+        bits = self._runs[i].object_bits(x, y, h)
+        return bool(bits & OBJECT_LEFT), bool(bits & OBJECT_RIGHT)
+
+
+class _Passable(TableColony):
+    """The other robots never block a move."""
+
+    def _blockers(self, i: int, x: float, y: float) -> list[tuple[float, float]]:
+        return []
+
+
+class _UnseenPassable(_Unseen, _Passable):
+    """Both."""
+
+
+OTHERS: dict[str, type[TableColony]] = {
+    "as-is": TableColony, "unseen": _Unseen, "passable": _Passable,
+    "unseen-passable": _UnseenPassable,
+}  # fmt: skip
+"""The colony worlds of ``--others``: SPEC §7's, and the other robots unseen by the object
+sensors, passable, or both (diagnostics, interpreter only)."""
 
 
 class TimelineError(InputError, ValueError):
@@ -184,15 +219,17 @@ def run_timeline(
     colony: ColonySettings,
     start_power: float | None = None,
     max_steps: int | None = None,
+    others: str = "as-is",
 ) -> RunTimeline:
     """One colony run of a 16-gene ``chromosome`` from ``start`` (R, 3) with the reference
-    interpreter in the table world (coverage mode), colony step by colony step. Raises
-    ``AssertionError`` if the docks counted from the events differ from the interpreter's."""
+    interpreter in the table world (coverage mode; ``others``: a key of ``OTHERS``), colony
+    step by colony step. Raises ``AssertionError`` if the docks counted from the events
+    differ from the interpreter's."""
     values = getattr(table, "values", table)
     start = np.asarray(start, dtype=np.float64)
     watch = _DockWatcher(start.shape[0], world)
     res = run_colony(
-        np.asarray(chromosome, np.uint8), TableColony(values, start, world, colony),
+        np.asarray(chromosome, np.uint8), OTHERS[others](values, start, world, colony),
         settings=world, colony=colony, start_power=start_power, max_steps=max_steps,
         on_event=watch,
     )  # fmt: skip
@@ -230,6 +267,7 @@ def colony_timeline(chromosome: np.ndarray, starts: np.ndarray, **run: Any) -> d
     ``robots``, ``starts``."""
     starts = np.asarray(starts, dtype=np.float64)
     runs = [run_timeline(chromosome, s, **run) for s in starts]
+    alone = {k: v for k, v in run.items() if k != "others"}  # a robot alone has no others
     in_colony = [h for r in runs for h in r.handoffs]
     n = max(len(r.docks) for r in runs)
     r_count = starts.shape[1]
@@ -246,7 +284,7 @@ def colony_timeline(chromosome: np.ndarray, starts: np.ndarray, **run: Any) -> d
         "live_at_end": float(np.mean([r.result.live for r in runs])),
         "colony_steps": float(np.mean([r.result.colony_steps for r in runs])),
         "handoffs": _colony_handoff_rate(in_colony),
-        "handoffs_alone": handoff_rate(_alone(chromosome, starts, **run)),
+        "handoffs_alone": handoff_rate(_alone(chromosome, starts, **alone)),
     }
 
 
@@ -341,13 +379,16 @@ def docks_over_time(
     starts: int = 20,
     seed: int = 0,
     table: str | None = None,
+    others: str = "as-is",
 ) -> dict[str, Any]:
     """``colony_timeline`` of every colony finalist of ``run_dir`` under the run's settings,
     from ``starts`` colony starts drawn from ``default_rng(seed)``, all curves held to the
     longest run. ``table``: "paper" or a calibration JSON instead of the run's recorded
-    table."""
+    table; ``others``: a key of ``OTHERS``."""
     if starts < 1:
         raise TimelineError(f"--starts must be >= 1, got {starts}")
+    if others not in OTHERS:
+        raise TimelineError(f"--others must be one of {', '.join(OTHERS)}, got {others!r}")
     paths = finalists(run_dir)
     world, colony, recorded, source = run_settings(run_dir)
     if table is not None:
@@ -360,7 +401,8 @@ def docks_over_time(
     poses = colony_starts(np.random.default_rng(seed), starts, world, colony)
     curves = []
     for p in paths:
-        c = colony_timeline(read_chromosome(p), poses, table=values, world=world, colony=colony)
+        c = colony_timeline(read_chromosome(p), poses, table=values, world=world, colony=colony,
+                            others=others)  # fmt: skip
         curves.append({"finalist": p.stem, "label": p.stem.replace("best_pop", "population "), **c})
     n = max(len(c["docks_per_robot"]) for c in curves)
     for c in curves:
@@ -372,6 +414,7 @@ def docks_over_time(
         "table_matches_run": recorded is None or bool(np.array_equal(values, recorded)),
         "starts": starts,
         "seed": seed,
+        "others": others,
         "ColonySettings": colony.to_dict(),
         "dock_goal": DOCK_GOAL,
         "live_goal": LIVE_GOAL_SHARE * colony.robots,
@@ -403,26 +446,33 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="'paper' or a calibration JSON (default: the run's recorded table)",
     )
+    ap.add_argument("--others", choices=tuple(OTHERS), default="as-is",
+                    help="the other robots as SPEC §7 has them (as-is), unseen by the object "
+                         "sensors, passable, or both: a diagnostic")  # fmt: skip
     ap.add_argument(
         "--out",
         type=Path,
         default=None,
-        help=f"figure path (default RUN_DIR/colony/{FIGURE_NAME}); curves beside it",
+        help=f"figure path (default RUN_DIR/colony/{FIGURE_NAME}, with -OTHERS but for as-is); "
+        "curves beside it",
     )
     args = ap.parse_args(argv)
     from evolve import figures
 
     t0 = time.perf_counter()
     try:
-        doc = docks_over_time(args.run_dir, starts=args.starts, seed=args.seed, table=args.table)
+        doc = docks_over_time(args.run_dir, starts=args.starts, seed=args.seed, table=args.table,
+                              others=args.others)  # fmt: skip
     except InputError as exc:
         print(f"evolve.colony_timeline: {exc}", file=sys.stderr)
         return 2
-    out = args.out if args.out is not None else args.run_dir / "colony" / FIGURE_NAME
+    name = FIGURE_NAME if args.others == "as-is" else FIGURE_NAME.replace(".", f"-{args.others}.")
+    out = args.out if args.out is not None else args.run_dir / "colony" / name
     c = ColonySettings(**{k: _tuples(v) for k, v in doc["ColonySettings"].items()})
     title = (
         f"{args.run_dir}: a colony of {c.robots} ({c.blocking}, fitness {c.fitness}), "
         f"{args.starts} colony starts (seed {args.seed}), table {doc['table']}"
+        + ("" if args.others == "as-is" else f", other robots {args.others}")
     )
     figures.figure_colony_docks(out, doc["curves"], title)
     atomic_write_json(out.with_suffix(".json"), _rounded(doc))
@@ -452,6 +502,7 @@ __all__ = [
     "FIGURE_NAME",
     "LIVE_GOAL_SHARE",
     "NEAR_DOCK",
+    "OTHERS",
     "ColonyHandoff",
     "RunTimeline",
     "TimelineError",

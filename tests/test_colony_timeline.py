@@ -16,8 +16,17 @@ import pytest
 from chromosome_text import STILL, B, G, chrom, gene
 
 from evolve.codec import write_chromosome
-from evolve.colony_timeline import ColonyHandoff, colony_timeline, main, run_timeline
+from evolve.colony_timeline import (
+    OTHERS,
+    ColonyHandoff,
+    TimelineError,
+    colony_timeline,
+    docks_over_time,
+    main,
+    run_timeline,
+)
 from evolve.figures import figure_colony_docks
+from evolve.handoff import DOCKED
 from evolve.interpreter import END_KILL_ZONE, END_STEP_LIMIT
 from evolve.settings import ColonySettings, WorldSettings, settings_json
 from evolve.starts import colony_starts
@@ -101,6 +110,29 @@ def test_a_hand_off_blocked_by_a_robot_ended_at_the_station():
     assert h["failed_by_end"] == {"kill zone": 1, "power empty": 1, "branch limit": 0}
     # alone, robot 1 walks on and docks at 460
     assert c["handoffs_alone"]["docked"] == 1 and c["handoffs_alone"]["failed"] == 1
+
+
+def test_the_other_robots_unseen_or_passable():
+    """``--others``: robot 1 stands 38 units ahead of robot 0, inside its object sensors' 50;
+    unseen, it is not in them. Passable, the robot ended at the station in the case above no
+    longer blocks robot 1, which walks on and docks at 460 as it does alone."""
+    ahead = np.array([[250.0, 250.0, 90.0], [288.0, 250.0, 90.0]])
+    seen = OTHERS["as-is"](TABLE, ahead, WORLD, ColonySettings(robots=2))
+    unseen = OTHERS["unseen"](TABLE, ahead, WORLD, ColonySettings(robots=2))
+    assert seen.object_sensors(0) == (True, True) and unseen.object_sensors(0) == (False, False)
+    assert unseen.step(0, 0) is True  # still blocking: gait 0 would end 28 units from it
+    assert unseen.pose(0) == (250.0, 250.0, 90.0)
+    starts = np.array([[470.0, 250.0, 90.0], [420.0, 250.0, 90.0]])
+    kw = dict(table=TABLE, world=WORLD, colony=ColonySettings(robots=2), start_power=3.95,
+              max_steps=100)  # fmt: skip
+    passable = run_timeline(DOCKER, starts, others="passable", **kw)
+    assert set(passable.handoffs) == {
+        ColonyHandoff(0, "kill zone", blocked=0, beside_ended=False),
+        ColonyHandoff(1, DOCKED, blocked=0, beside_ended=True),  # docked beside the body
+    }
+    assert [r.docks for r in passable.result.robots] == [0, 1]
+    with pytest.raises(TimelineError, match="--others must be one of"):
+        docks_over_time("nowhere", others="invisible")
 
 
 def test_a_dock_without_a_charge_still_counts():
