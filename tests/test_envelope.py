@@ -776,7 +776,9 @@ def test_an_envelope_recorded_before_the_training_fields_reads_back_as_it_was():
     assert env.to_dict() == old_record  # a folder made then still resumes
     half = old_record | {"station_stops": True, "unseen_stops_p": 0.5}
     assert Envelope.from_dict(half).to_dict() == half
-    assert DEFAULT.to_dict() == half | {"draws_per_start": 2, "station_strata": True}
+    assert Envelope.from_dict(half).station_blocking == "cancel"  # recorded before the slide
+    assert DEFAULT.to_dict() == half | {"station_blocking": "slide", "draws_per_start": 2,
+                                        "station_strata": True}  # fmt: skip
 
 
 def test_stratified_station_draws_split_each_start_between_the_worlds():
