@@ -390,16 +390,11 @@ def block_slide_end(x, y, nx, ny, x0, y0, x1, y1, friction):
     friction takes it all). Returns (x, y) + t·max(0, |t| − friction |d·n|) / |t|; (x, y)
     for a start on or in the block or a move straight into it; (nx, ny) for a move not into
     it (d·n ≥ 0)."""
-    ux = x - min(max(x, x0), x1)
-    uy = y - min(max(y, y0), y1)
-    norm = math.sqrt(ux * ux + uy * uy)
+    cx = min(max(x, x0), x1)
+    cy = min(max(y, y0), y1)
+    norm, ux, uy, dx, dy, dn = _contact(x, y, nx, ny, cx, cy)
     if norm == 0.0:
         return x, y
-    ux = ux / norm
-    uy = uy / norm
-    dx = nx - x
-    dy = ny - y
-    dn = dx * ux + dy * uy
     if dn >= 0.0:
         return nx, ny
     tx = dx - dn * ux
@@ -429,19 +424,28 @@ def slide_end(x, y, nx, ny, ox, oy):
     (x, y) + d − (d·n) n when d·n < 0; else (nx, ny) (d does not point into the other disc),
     and (x, y) when the two centres coincide. The caller tests the end again
     (``too_close``): this does not say whether it is free."""
-    ux = x - ox
-    uy = y - oy
-    norm = math.sqrt(ux * ux + uy * uy)
+    norm, ux, uy, dx, dy, dn = _contact(x, y, nx, ny, ox, oy)
     if norm == 0.0:
         return x, y
-    ux = ux / norm
-    uy = uy / norm
-    dx = nx - x
-    dy = ny - y
-    dn = dx * ux + dy * uy
     if dn >= 0.0:
         return nx, ny
     return x + (dx - dn * ux), y + (dy - dn * uy)
+
+
+@register_jitable
+def _contact(x, y, nx, ny, ox, oy):
+    """A move from (x, y) to (nx, ny) against a contact point (ox, oy): (|(x, y) − (ox, oy)|,
+    the unit normal ux, uy from the contact to (x, y) (unnormalised when that distance is 0),
+    the move dx, dy, and d·n)."""
+    ux = x - ox
+    uy = y - oy
+    norm = math.sqrt(ux * ux + uy * uy)
+    if norm != 0.0:
+        ux = ux / norm
+        uy = uy / norm
+    dx = nx - x
+    dy = ny - y
+    return norm, ux, uy, dx, dy, dx * ux + dy * uy
 
 
 @register_jitable

@@ -196,6 +196,7 @@ def test_envelope_reaches_the_stages(envelope_dir: Path) -> None:
     assert json.loads((out / "navigation" / "settings.json").read_text())["Envelope"]
     text = (out / "REPORT.md").read_text()
     assert "Envelope: `default`" in text
+    assert "station_stops true" in text and "station_blocking slide" in text  # names print too
     assert "In its envelope, on the same test starts:" in text  # docking
     assert "In the envelope, on the same test starts: mean" in text  # Figure 9
     assert "mean (envelope) |" in text and "## 5. Robustness" in text

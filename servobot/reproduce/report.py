@@ -405,6 +405,13 @@ def finalists_phrase(s: ReproduceSettings) -> str:
     return f"{n} best finalists by Figure 9" if n > 1 else "best finalist by Figure 9"
 
 
+def _field(v: bool | float | str) -> str:
+    """An envelope field's value as the report prints it: true / false, a number, a name."""
+    if isinstance(v, bool):
+        return str(v).lower()
+    return f"{v:g}" if isinstance(v, int | float) else str(v)
+
+
 def _envelope_line(s: ReproduceSettings) -> str:
     """Which table world navigation and coverage evolved in."""
     try:
@@ -413,8 +420,7 @@ def _envelope_line(s: ReproduceSettings) -> str:
         return f"Envelope: `{s.envelope}` *(unreadable now: {exc})*."
     if not env.varies:
         return "Envelope: `none` (navigation and coverage evolved in the exact world, SPEC §3)."
-    fields = ", ".join(f"{k} {v:g}" if not isinstance(v, bool) else f"{k} {str(v).lower()}"
-                       for k, v in env.to_dict().items())  # fmt: skip
+    fields = ", ".join(f"{k} {_field(v)}" for k, v in env.to_dict().items())
     return (
         f"Envelope: `{s.envelope}` ({fields}; SPEC §9): navigation and coverage evolved in it; "
         "their test figures are given in the envelope and in the exact world (SPEC §3), on the "
