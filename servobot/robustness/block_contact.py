@@ -29,6 +29,7 @@ from evolve.geometry import wrap180
 from evolve.table import N_GAITS, PAPER_TABLE, load_table
 from evolve.world import TableWorld
 from infra.io import atomic_write, write_report
+from servobot.robustness.report import DPI
 
 Pose = tuple[float, float, float]
 
@@ -47,7 +48,6 @@ POSE_SETS: dict[str, tuple[list[Pose], tuple[int, ...]]] = {
 the gaits walked from each."""
 FRICTIONS = (0.0, 0.25, 0.4, 0.5, 0.6, 0.75, 1.0)
 """``station_friction`` values swept by default."""
-DPI = 130
 
 
 @dataclass(frozen=True)
