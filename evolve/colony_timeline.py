@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from evolve import geometry as geo
-from evolve.codec import OBJECT_LEFT, OBJECT_RIGHT, read_chromosome
+from evolve.codec import read_chromosome
 from evolve.handoff import CUT, DOCKED, collect_handoffs, handoff_rate, open_outcome
 from evolve.interpreter import (
     BLOCKED_MARK,
@@ -86,15 +86,6 @@ FIGURE_NAME = "docks_over_time.png"
 """The figure's default name in ``RUN_DIR/colony``; the curves go beside it as ``.json``."""
 
 
-class _Unseen(TableColony):
-    """The other robots are not in the object sensors (walls and station block only)."""
-
-    def object_sensors(self, i: int) -> tuple[bool, bool]:
-        x, y, h = self.pose(i)
-        bits = self._runs[i].object_bits(x, y, h)
-        return bool(bits & OBJECT_LEFT), bool(bits & OBJECT_RIGHT)
-
-
 class _Passable(TableColony):
     """The other robots never block a move."""
 
@@ -102,16 +93,24 @@ class _Passable(TableColony):
         return []
 
 
-class _UnseenPassable(_Unseen, _Passable):
-    """Both."""
-
-
-OTHERS: dict[str, type[TableColony]] = {
-    "as-is": TableColony, "unseen": _Unseen, "passable": _Passable,
-    "unseen-passable": _UnseenPassable,
+OTHERS: dict[str, tuple[type[TableColony], bool]] = {
+    "as-is": (TableColony, True), "unseen": (TableColony, False),
+    "passable": (_Passable, True), "unseen-passable": (_Passable, False),
 }  # fmt: skip
 """The colony worlds of ``--others``: SPEC §7's, and the other robots unseen by the object
-sensors, passable, or both (diagnostics, interpreter only)."""
+sensors (``ColonySettings.robots_seen`` False), passable, or both (diagnostics, interpreter
+only): (the colony's class, whether the other robots may be seen)."""
+
+
+def others_colony(
+    others: str, table: np.ndarray, starts: np.ndarray, world: WorldSettings,
+    colony: ColonySettings,
+) -> TableColony:  # fmt: skip
+    """The table colony of ``--others`` ``others`` (a key of ``OTHERS``); robots the run's own
+    settings leave unseen stay unseen."""
+    cls, seen = OTHERS[others]
+    seen_colony = dataclasses.replace(colony, robots_seen=colony.robots_seen and seen)
+    return cls(table, starts, world, seen_colony)
 
 
 class TimelineError(InputError, ValueError):
@@ -229,7 +228,7 @@ def run_timeline(
     start = np.asarray(start, dtype=np.float64)
     watch = _DockWatcher(start.shape[0], world)
     res = run_colony(
-        np.asarray(chromosome, np.uint8), OTHERS[others](values, start, world, colony),
+        np.asarray(chromosome, np.uint8), others_colony(others, values, start, world, colony),
         settings=world, colony=colony, start_power=start_power, max_steps=max_steps,
         on_event=watch,
     )  # fmt: skip

@@ -553,10 +553,11 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     ``code`` = decoded (loops (R, G), ops, arg, target (R, G, 4)), one row per robot (the
     same row R times for a colony of one chromosome); ``colony`` = (disc radius, minimum centre
     distance, charge steps, colony-step limit or −1, blocking code: ``BLOCK_SLIDE`` slides
-    blocked moves, 0 cancels them). ``power0`` (R,): each robot's start power
-    (``ColonySettings.start_powers``). ``pose`` (R, 3) holds the start poses
-    and receives the final ones; ``power`` (R,), ``st`` (R, S_COLUMNS), ``masks`` (R, 2)
-    uint64 are the robots' state; ``out`` receives (colony squares, inner, colony steps).
+    blocked moves, 0 cancels them; 1 or 0: whether the object sensors see the other robots).
+    ``power0`` (R,): each robot's start power (``ColonySettings.start_powers``). ``pose``
+    (R, 3) holds the start poses and receives the final ones; ``power`` (R,), ``st`` (R,
+    S_COLUMNS), ``masks`` (R, 2) uint64 are the robots' state; ``out`` receives (colony
+    squares, inner, colony steps).
     ``draws`` = (gait tables (R, 16, 3), reaches (R,), station bits, scatter keys (R,), σ
     (16, 3), packed envelope): the run's envelope draws (``evolve.variation``).
     The turn is written out here, not in a helper: an inlined helper taking these arrays
@@ -570,6 +571,7 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     radius, min_dist = colony[0], colony[1]
     charge_steps, step_limit = int(colony[2]), int(colony[3])
     slide = int(colony[4]) == BLOCK_SLIDE
+    seen = pose if int(colony[5]) != 0 else pose[:0]  # the discs the object sensors see
     max_branches = int(p[P_MAX_BRANCH])
     backup = int(p[P_BACKUP_GAIT])
     _start(loops, power0, max_steps, pose, power, st, masks)
@@ -595,7 +597,7 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
                 while ops[i, g, k] != OP_GAIT:
                     test = arg[i, g, k]
                     positive, seen_objects, seen_lights = _branch_test(
-                        test, seen_objects, seen_lights, x, y, h, pw, p, pose, i, radius,
+                        test, seen_objects, seen_lights, x, y, h, pw, p, seen, i, radius,
                         reach[i], block)  # fmt: skip
                     branches += 1
                     if branches >= max_branches:

@@ -250,6 +250,13 @@ class ColonySettings:
     (default): every robot starts on P0, as SPEC §7 reads; 0.5 → 4.0, 4.5, 5.0 V, so the
     robots do not all reach the low-power threshold at once. Only the start differs: a
     charge still ends at ``charged_power_v``."""
+    robots_seen: bool = True
+    """Whether the object sensors see the other robots [chosen; issue 17, docs/colony.md
+    "Robots the rangefinders do not see"]. True (default, SPEC §7): a span is active if some
+    point of another robot's disc lies within the activation distance along it. False: the
+    object sensors see the walls (and a seen station block) only; the other robots still
+    block moves. In MuJoCo, False is a robot whose rangefinder rays pass above the other
+    robots (no shell, the bumper invisible to rays: ``servo_mj.world.arena``)."""
     sections: str = "shared"
     """What the colony stage evolves [chosen; issue 17, docs/colony.md "A team of sections:
     cooperative coevolution"]: ``"shared"`` (default, SPEC §7), one coverage section that
@@ -272,6 +279,8 @@ class ColonySettings:
         if self.sections not in COLONY_SECTIONS:
             allowed = ", ".join(repr(v) for v in COLONY_SECTIONS)
             raise SettingsError(f"sections must be one of {allowed}, got {self.sections!r}")
+        if not isinstance(self.robots_seen, bool):
+            raise SettingsError(f"robots_seen must be true or false, got {self.robots_seen!r}")
         if self.blocking not in BLOCKING_RULES:
             allowed = ", ".join(repr(b) for b in BLOCKING_RULES)
             raise SettingsError(f"blocking must be one of {allowed}, got {self.blocking!r}")
@@ -318,9 +327,10 @@ class ColonySettings:
         """Every field, but ``blocking`` only when it is not ``"cancel"``, ``fitness`` only when
         it is not ``"squares"``, ``sections`` only when it is not ``"shared"``, ``alive_weight``
         only with ``fitness = "alive"``, ``dock_weight``, ``dock_cap`` only with ``fitness =
-        "docks"`` (the fitnesses that read them) and ``start_power_spread`` only when it is not
-        0: the record of a colony made before these fields existed (``settings.json``, checked
-        on resume) is unchanged, so such a run folder still resumes."""
+        "docks"`` (the fitnesses that read them), ``start_power_spread`` only when it is not
+        0 and ``robots_seen`` only when False: the record of a colony made before these fields
+        existed (``settings.json``, checked on resume) is unchanged, so such a run folder still
+        resumes."""
         d = dataclasses.asdict(self)
         if self.blocking == "cancel":
             del d["blocking"]
@@ -334,6 +344,8 @@ class ColonySettings:
             del d["start_power_spread"]
         if self.sections == "shared":
             del d["sections"]
+        if self.robots_seen:
+            del d["robots_seen"]
         return d
 
 

@@ -182,7 +182,8 @@ class TableColony:
     A move that would bring a robot's centre closer than two radii to another robot's
     centre is cancelled (the robot keeps its whole pose), or with ``colony.blocking`` =
     ``"slide"`` slid along the contact tangent (``ColonySettings.blocking``). Object sensors
-    see the walls and every point of the other robots' discs (``geometry.disc_bits``); light
+    see the walls and every point of the other robots' discs (``geometry.disc_bits``; not the
+    discs with ``colony.robots_seen`` False); light
     sensors are the lone robot's. ``starts`` is (R, 3): x, y (arena units), heading (deg) per robot.
     ``envelope``, ``envelope_key``, ``start``: as ``TableWorld``, robot i drawing as robot i
     of ``evolve.evaluate_colony``'s column ``start``; a seen station block is one for all.
@@ -253,7 +254,8 @@ class TableColony:
         x, y, h = self._poses[i]
         run = self._runs[i]
         bits = run.object_bits(x, y, h)
-        for j, (ox, oy, _) in enumerate(self._poses):
+        others = self._poses if self.colony.robots_seen else []
+        for j, (ox, oy, _) in enumerate(others):
             if j != i:
                 bits |= geometry.disc_bits_within(x, y, h, ox, oy, self._radius, run.reach, self._p)
         return bool(bits & OBJECT_LEFT), bool(bits & OBJECT_RIGHT)

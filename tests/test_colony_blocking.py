@@ -184,7 +184,8 @@ def test_blocking_is_validated_and_recorded_only_when_not_cancel():
     assert "blocking" not in record
     assert record == {k: v for k, v in dataclasses.asdict(ColonySettings()).items()
                       if k not in ("blocking", "fitness", "alive_weight", "dock_weight",
-                                   "dock_cap", "start_power_spread", "sections")}  # fmt: skip
+                                   "dock_cap", "start_power_spread", "sections",
+                                   "robots_seen")}  # fmt: skip
     assert json.loads(settings_json(SLIDE))["ColonySettings"]["blocking"] == "slide"
 
 

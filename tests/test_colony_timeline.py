@@ -110,8 +110,8 @@ def test_the_other_robots_unseen_or_passable():
     unseen, it is not in them. Passable, the robot ended at the station in the case above no
     longer blocks robot 1, which walks on and docks at 460 as it does alone."""
     ahead = np.array([[250.0, 250.0, 90.0], [288.0, 250.0, 90.0]])
-    seen = timeline.OTHERS["as-is"](TABLE, ahead, WORLD, ColonySettings(robots=2))
-    unseen = timeline.OTHERS["unseen"](TABLE, ahead, WORLD, ColonySettings(robots=2))
+    seen = timeline.others_colony("as-is", TABLE, ahead, WORLD, ColonySettings(robots=2))
+    unseen = timeline.others_colony("unseen", TABLE, ahead, WORLD, ColonySettings(robots=2))
     assert seen.object_sensors(0) == (True, True) and unseen.object_sensors(0) == (False, False)
     assert unseen.step(0, 0) is True  # still blocking: gait 0 would end 28 units from it
     assert unseen.pose(0) == (250.0, 250.0, 90.0)

@@ -235,15 +235,20 @@ def colony_robot_names(robots: int) -> tuple[str, ...]:
     return tuple(f"{ROBOT_MODEL_NAME}{i}" for i in range(robots))
 
 
-def _add_bumper(torso: mjcf.Element, radius_m: float, arena: ArenaSettings) -> None:
-    """A colony robot's bumper (a sphere that collides with other robots' bumpers only) and
-    shell (a cylinder that other robots' rangefinders see), both massless, of radius
-    ``radius_m`` (``ArenaSettings.bumper_bit``, ``shell_bottom_m``, ``shell_top_m``)."""
+def _add_bumper(torso: mjcf.Element, radius_m: float, arena: ArenaSettings, seen: bool) -> None:
+    """A colony robot's bumper (a sphere that collides with other robots' bumpers only) and,
+    when the other robots' rangefinders are to see it (``seen``), its shell (a cylinder they
+    see), both massless, of radius ``radius_m`` (``ArenaSettings.bumper_bit``,
+    ``shell_bottom_m``, ``shell_top_m``). An unseen robot's bumper is transparent: MuJoCo's
+    rangefinders skip geoms of alpha 0, and its rays pass above the robots' bodies."""
     lo, hi = arena.shell_bottom_m, arena.shell_top_m
     torso.add(
         "geom", name=BUMPER, type="sphere", size=[radius_m], contype=arena.bumper_bit,
-        conaffinity=arena.bumper_bit, condim=1, density=0, group=3, rgba=[0.3, 0.6, 1.0, 0.1],
+        conaffinity=arena.bumper_bit, condim=1, density=0, group=3,
+        rgba=[0.3, 0.6, 1.0, 0.1 if seen else 0.0],
     )  # fmt: skip
+    if not seen:
+        return
     torso.add(
         "geom", name=SHELL, type="cylinder", size=[radius_m, (hi - lo) / 2],
         pos=[0.0, 0.0, (hi + lo) / 2], contype=0, conaffinity=0, density=0, group=3,
@@ -259,8 +264,10 @@ def _attach_robot(
     *,
     name: str | None = None,
     bumper_m: float | None = None,
+    seen: bool = True,
 ) -> None:
-    """Attach one robot (renamed ``name`` when given; with a bumper of radius ``bumper_m``)."""
+    """Attach one robot (renamed ``name`` when given; with a bumper of radius ``bumper_m``,
+    and a shell when ``seen``)."""
     bot = mjcf.from_path(str(spec.xml))
     if name is not None:
         bot.model = name
@@ -270,7 +277,7 @@ def _attach_robot(
         height_m=arena.sensor_height_m, forward=spec.forward_axis,
     )  # fmt: skip
     if bumper_m is not None:
-        _add_bumper(torso, bumper_m, arena)
+        _add_bumper(torso, bumper_m, arena, seen)
     # Move the torso's placement onto the frame, so the frame's free joint is the torso's.
     pos = np.zeros(3) if torso.pos is None else np.asarray(torso.pos, dtype=float)
     quat = None if torso.quat is None else np.asarray(torso.quat, dtype=float)
@@ -293,7 +300,8 @@ def build_arena(
 
     ``colony`` None: one robot, as the model file names it (prefix ``servobot/``), no bumper.
     Else ``colony.robots`` robots named by ``colony_robot_names``, each with a bumper of
-    radius ``colony.disc_radius``.
+    radius ``colony.disc_radius`` and, when ``colony.robots_seen``, a shell the other robots'
+    rangefinders see.
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
@@ -305,7 +313,8 @@ def build_arena(
     else:
         radius = colony.disc_radius / CM_PER_M
         for name in colony_robot_names(colony.robots):
-            _attach_robot(root, spec, world, arena, name=name, bumper_m=radius)
+            _attach_robot(root, spec, world, arena, name=name, bumper_m=radius,
+                          seen=colony.robots_seen)  # fmt: skip
     return root
 
 

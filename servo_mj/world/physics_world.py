@@ -47,8 +47,9 @@ def colony(
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
     robots = None
-    if colony_settings is not None:  # only these two shape the model
-        robots = (colony_settings.robots, colony_settings.disc_radius)
+    if colony_settings is not None:  # only these three shape the model
+        c = colony_settings
+        robots = (c.robots, c.disc_radius, c.robots_seen)
     key = (repr(world), repr(arena), repr(robot), robots)
     if key not in _CACHE:
         _CACHE[key] = compile_arena(world, arena, robot, colony_settings)

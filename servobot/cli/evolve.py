@@ -12,15 +12,15 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
     servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide
                                 --colony-fitness squares|alive|per_step|docks
                                 --alive-weight 8 --dock-weight 4 --dock-cap 2
-                                --start-power-spread 0 --sections shared|team
-                                --team-from DIR]
+                                --start-power-spread 0 --robots-unseen
+                                --sections shared|team --team-from DIR]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
 R, ``--blocking`` its table-world blocking rule, ``--colony-fitness`` what a colony run
 scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`` (with
 ``docks``) its terms, ``--start-power-spread`` its robots' staggered start powers,
-``--sections`` one section for every robot or a coevolved team of them;
+``--robots-unseen`` object sensors blind to the other robots, ``--sections`` one section for every robot or a coevolved team of them;
 ``--nav-start-power``: ``NavigationSettings.start_power_v``).
 ``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
 ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the navigation section,
@@ -127,6 +127,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="colony only: robot i starts with 4.0 + i × V volts, capped at the charged 5.0 V "
         "(0, default: every robot on 4.0 V; 0.5: 4.0, 4.5, 5.0 V); "
         "ColonySettings.start_power_spread, docs/colony.md",
+    )
+    p.add_argument(
+        "--robots-unseen",
+        action="store_true",
+        default=None,
+        help="colony only: the object sensors do not see the other robots (they still block "
+        "moves; in MuJoCo the rangefinder rays pass above them). Default: seen, SPEC §7; "
+        "ColonySettings.robots_seen, docs/colony.md",
     )
     p.add_argument(
         "--sections",
@@ -347,6 +355,8 @@ def _colony(args: argparse.Namespace) -> Any:
     if args.start_power_spread is not None:
         kw["start_power_spread"] = check_nonnegative(args.start_power_spread,
                                                      "--start-power-spread", "volts")  # fmt: skip
+    if args.robots_unseen:
+        kw["robots_seen"] = False
     if args.robots is None:
         return ColonySettings(**kw)
     check_int(args.robots, "--robots", lo=1)
@@ -363,7 +373,8 @@ FITNESS_TERMS = (
 
 STAGE_OPTIONS = (
     ("robots", "colony"), ("blocking", "colony"), ("start_power_spread", "colony"),
-    ("colony_fitness", "colony"), ("sections", "colony"), ("nav_start_power", "navigation"),
+    ("colony_fitness", "colony"), ("sections", "colony"), ("robots_unseen", "colony"),
+    ("nav_start_power", "navigation"),
 )  # fmt: skip
 """(option's field, the one stage that takes it): refused with any other stage."""
 

@@ -9,8 +9,9 @@ the ``--poses FILE`` poses and powers (e.g. a coverage stage's ``handoffs.csv``)
 start is a colony of R robots sharing the station (SPEC §7): N colony starts drawn by
 ``evolve.starts.colony_starts``, or the ``--start`` poses taken R at a time (``--blocking``:
 the table world's blocking rule, ``ColonySettings.blocking``; ``--start-power-spread``: robot
-i starts i × V volts above the start power, ``ColonySettings.start_power_spread``); it also writes
-``tracks{k}.png`` (``servobot.validation.colony``). Prints the per-start table
+i starts i × V volts above the start power, ``ColonySettings.start_power_spread``;
+``--robots-unseen``: object sensors blind to the other robots, ``ColonySettings.robots_seen``);
+it also writes ``tracks{k}.png`` (``servobot.validation.colony``). Prints the per-start table
 and the summary. Exit status: 0 = all runs finished, 1 = some physics runs failed (their
 errors are in the report), 2 = bad input (message names the problem; checked before any
 run), 130 = interrupted (``servobot.cli.runner``). ``--force`` replaces a validation made
@@ -129,6 +130,13 @@ def build_parser() -> argparse.ArgumentParser:
         "worlds",
     )
     p.add_argument(
+        "--robots-unseen",
+        action="store_true",
+        help="with --robots: the object sensors do not see the other robots, in both worlds "
+        "(ColonySettings.robots_seen False: no shell in MuJoCo, the rays pass above the "
+        "robots); they still block",
+    )
+    p.add_argument(
         "--seed", type=int, default=0, help="seed of the start poses and servo noise (default 0)"
     )
     p.add_argument(
@@ -203,19 +211,21 @@ def _check_options(args: argparse.Namespace, n_starts: int) -> None:
 
 
 def _colony(args: argparse.Namespace) -> ColonySettings | None:
-    """The colony of ``--robots``, ``--blocking`` and ``--start-power-spread`` (None without
-    ``--robots``)."""
+    """The colony of ``--robots``, ``--blocking``, ``--start-power-spread`` and
+    ``--robots-unseen`` (None without ``--robots``)."""
     if args.robots is None:
-        if args.blocking is not None:
-            raise InputError("--blocking is an option of a colony (--robots R)")
-        if args.start_power_spread is not None:
-            raise InputError("--start-power-spread is an option of a colony (--robots R)")
+        given = {"--blocking": args.blocking is not None, "--robots-unseen": args.robots_unseen,
+                 "--start-power-spread": args.start_power_spread is not None}  # fmt: skip
+        for flag in (f for f, on in given.items() if on):
+            raise InputError(f"{flag} is an option of a colony (--robots R)")
         return None
     check_int(args.robots, "--robots", lo=1)
     kw: dict[str, Any] = {} if args.blocking is None else {"blocking": args.blocking}
     if args.start_power_spread is not None:
         kw["start_power_spread"] = check_nonnegative(args.start_power_spread,
                                                      "--start-power-spread", "volts")  # fmt: skip
+    if args.robots_unseen:
+        kw["robots_seen"] = False
     return ColonySettings(robots=args.robots, **kw)
 
 
