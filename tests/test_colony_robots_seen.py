@@ -117,6 +117,22 @@ def test_the_physics_rays_pass_above_unseen_robots():
     assert 29.5 < unseen.min_distance_cm < 30.5
 
 
+def test_an_unseen_colony_validates_and_records_without_shells(tmp_path):
+    from servobot.validation.colony import validate_colony
+    from tests.test_recording import Rrd
+
+    starts = np.array([[[200.0, 250.0, 90.0], [240.0, 250.0, 0.0]]])
+    rep = validate_colony(chrom(gene("00", G(8), G(8), G(8), G(8))), starts, table=PAPER_TABLE,
+                          colony=UNSEEN, workers=1, max_steps=2, out_dir=tmp_path,
+                          rrd=True)  # fmt: skip
+    assert rep["runs"][0]["error"] is None
+    assert rep["settings"]["ColonySettings"]["robots_seen"] is False
+    assert rep["runs"][0]["physics"]["colony"]["collisions"] > 0  # robot 0 pushes robot 1
+    rrd = Rrd(tmp_path / "run0.rrd")
+    assert not [k for k in rrd.static if k.endswith("/shell")]  # seen: one per robot
+    assert rrd.rows["/world/robots/robot1/bodies/torso"] > 0
+
+
 def test_the_setting_is_validated_and_recorded_only_when_false():
     with pytest.raises(SettingsError, match="robots_seen must be true or false, got 'no'"):
         ColonySettings(robots_seen="no")

@@ -20,7 +20,8 @@ Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for
 R, ``--blocking`` its table-world blocking rule, ``--colony-fitness`` what a colony run
 scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`` (with
 ``docks``) its terms, ``--start-power-spread`` its robots' staggered start powers,
-``--robots-unseen`` object sensors blind to the other robots, ``--sections`` one section for every robot or a coevolved team of them;
+``--robots-unseen`` object sensors blind to the other robots, ``--sections`` one section
+for every robot or a coevolved team of them;
 ``--nav-start-power``: ``NavigationSettings.start_power_v``).
 ``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
 ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the navigation section,

@@ -213,10 +213,16 @@ class ColonyRecorder:
         self.timelines["physics"].start(times_of(pc.t_s, colony_step=0))
 
     def _log_shell(self, pc: Any, i: int) -> None:
-        """Robot ``i``'s shell (``servo_mj.world.arena.SHELL``), static in its torso's frame."""
+        """Robot ``i``'s shell (``servo_mj.world.arena.SHELL``), static in its torso's frame;
+        none for robots the rangefinders do not see (``ColonySettings.robots_seen``)."""
+        import mujoco
+
         from servo_mj.world.arena import SHELL
 
-        g = pc.model.geom(pc.prefixes[i] + SHELL)
+        name = pc.prefixes[i] + SHELL
+        if mujoco.mj_name2id(pc.model, mujoco.mjtObj.mjOBJ_GEOM, name) < 0:
+            return
+        g = pc.model.geom(name)
         self.rec.rec.log(
             f"world/robots/{self.names[i]}/bodies/torso/shell",
             rr.Cylinders3D(
