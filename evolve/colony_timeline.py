@@ -469,7 +469,8 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out if args.out is not None else args.run_dir / "colony" / name
     c = ColonySettings(**{k: _tuples(v) for k, v in doc["ColonySettings"].items()})
     title = (
-        f"{args.run_dir}: a colony of {c.robots} ({c.blocking}, fitness {c.fitness}), "
+        f"{args.run_dir}: a colony of {c.robots} ({c.blocking}, fitness {c.fitness}"
+        f"{'' if c.robots_seen else ', robots unseen'}), "
         f"{args.starts} colony starts (seed {args.seed}), table {doc['table']}"
         + ("" if args.others == "as-is" else f", other robots {args.others}")
     )
