@@ -52,7 +52,7 @@ def test_outputs_and_their_numbers(tiny_run):
     # spread at its default: the record of the colonies made before them
     record = dataclasses.asdict(ColonySettings())
     for field in ("blocking", "fitness", "alive_weight", "dock_weight", "dock_cap",
-                  "start_power_spread", "sections"):
+                  "start_power_spread", "sections", "robots_seen"):
         del record[field]
     assert summary["settings"]["ColonySettings"] == record
     # The final test, redone independently: the written bests from the stage's test starts.
