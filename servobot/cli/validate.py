@@ -216,7 +216,8 @@ def _colony(args: argparse.Namespace) -> ColonySettings | None:
     if args.robots is None:
         given = {"--blocking": args.blocking is not None, "--robots-unseen": args.robots_unseen,
                  "--start-power-spread": args.start_power_spread is not None}  # fmt: skip
-        for flag in (f for f, on in given.items() if on):
+        flag = next((f for f, on in given.items() if on), None)
+        if flag is not None:
             raise InputError(f"{flag} is an option of a colony (--robots R)")
         return None
     check_int(args.robots, "--robots", lo=1)
