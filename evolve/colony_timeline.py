@@ -509,6 +509,7 @@ __all__ = [
     "colony_timeline",
     "docks_over_time",
     "finalists",
+    "others_colony",
     "run_settings",
     "run_timeline",
 ]

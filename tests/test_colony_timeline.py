@@ -15,9 +15,16 @@ import numpy as np
 import pytest
 from chromosome_text import STILL, B, G, chrom, gene
 
-import evolve.colony_timeline as timeline
 from evolve.codec import write_chromosome
-from evolve.colony_timeline import ColonyHandoff, colony_timeline, main, run_timeline
+from evolve.colony_timeline import (
+    ColonyHandoff,
+    TimelineError,
+    colony_timeline,
+    docks_over_time,
+    main,
+    others_colony,
+    run_timeline,
+)
 from evolve.figures import figure_colony_docks
 from evolve.handoff import DOCKED
 from evolve.interpreter import END_KILL_ZONE, END_STEP_LIMIT
@@ -110,8 +117,8 @@ def test_the_other_robots_unseen_or_passable():
     unseen, it is not in them. Passable, the robot ended at the station in the case above no
     longer blocks robot 1, which walks on and docks at 460 as it does alone."""
     ahead = np.array([[250.0, 250.0, 90.0], [288.0, 250.0, 90.0]])
-    seen = timeline.others_colony("as-is", TABLE, ahead, WORLD, ColonySettings(robots=2))
-    unseen = timeline.others_colony("unseen", TABLE, ahead, WORLD, ColonySettings(robots=2))
+    seen = others_colony("as-is", TABLE, ahead, WORLD, ColonySettings(robots=2))
+    unseen = others_colony("unseen", TABLE, ahead, WORLD, ColonySettings(robots=2))
     assert seen.object_sensors(0) == (True, True) and unseen.object_sensors(0) == (False, False)
     assert unseen.step(0, 0) is True  # still blocking: gait 0 would end 28 units from it
     assert unseen.pose(0) == (250.0, 250.0, 90.0)
@@ -124,8 +131,8 @@ def test_the_other_robots_unseen_or_passable():
         ColonyHandoff(1, DOCKED, blocked=0, beside_ended=True),  # docked beside the body
     }
     assert [r.docks for r in passable.result.robots] == [0, 1]
-    with pytest.raises(timeline.TimelineError, match="--others must be one of"):
-        timeline.docks_over_time("nowhere", others="invisible")
+    with pytest.raises(TimelineError, match="--others must be one of"):
+        docks_over_time("nowhere", others="invisible")
 
 
 def test_a_dock_without_a_charge_still_counts():
