@@ -26,6 +26,7 @@ from servobot.reproduce.run import (
     reproduce,
     stage_key,
 )
+from servobot.reproduce.settings import COLONY_FIELDS, COLONY_OPTIONS
 from servobot.robustness.worlds import BUILT_IN
 
 TINY = ReproduceSettings(
@@ -36,8 +37,10 @@ TINY = ReproduceSettings(
     robustness_steps=5, robustness_finalists=2, colony_validate_starts=2, seed=3,
 )  # fmt: skip
 """Smaller than --quick: seconds, but every stage and file of a full run."""
-COLONY_ARGV = ["--quick", "--robots", "3", "--workers", "1", "--no-progress"]
-"""``servobot reproduce --quick --robots 3`` (made tiny: ``quick_settings`` patched to TINY)."""
+COLONY_ARGV = ["--quick", "--robots", "3", "--colony-fitness", "alive", "--start-power-spread",
+               "0.5", "--robots-unseen", "--workers", "1", "--no-progress"]  # fmt: skip
+"""``servobot reproduce --quick --robots 3`` with every colony option (made tiny:
+``quick_settings`` patched to TINY)."""
 
 
 @pytest.fixture(scope="module")
@@ -311,6 +314,12 @@ def test_colony_stages_evolve_validate_and_report(colony_dir: Path) -> None:
     assert (out / "colony" / "figure9.png").stat().st_size > 0
     info = json.loads((out / "colony" / "done.json").read_text())["info"]
     assert info["robots"] == r and len(info["final_test"]) == TINY.coverage_populations
+    # The colony options reach the colony stage and both worlds of its validation.
+    evolved = json.loads((out / "colony" / "settings.json").read_text())["ColonySettings"]
+    validated = json.loads((out / "colony_validation/pop0/report.json").read_text())["settings"]
+    for colony in (evolved, validated["ColonySettings"]):
+        assert (colony["start_power_spread"], colony["robots_seen"]) == (0.5, False)
+    assert evolved["fitness"] == "alive"
     # Each colony finalist in physics with R robots, from the same seeded colony starts.
     starts = np.asarray(json.loads((out / "colony_validation/starts.json").read_text())["starts"])
     assert starts.shape == (TINY.colony_validate_starts, r, 3)
@@ -339,7 +348,9 @@ def test_colony_stages_evolve_validate_and_report(colony_dir: Path) -> None:
                  "](colony/figure9.png)", "](colony_validation/pop1/tracks0.png)",
                  "`rerun colony_validation/pop0/run0.rrd` (2 recordings in "
                  "`colony_validation/pop0/`)", f"**{val['gap_inner_pp']:+.1f}**",
-                 "## 7. Recordings", "## 8. Settings", '"robots": 3'):  # fmt: skip
+                 "## 7. Recordings", "## 8. Settings", '"robots": 3',
+                 "fitness `alive`, start powers staggered by 0.5 V, the other robots unseen",
+                 '"colony_robots_seen": false'):  # fmt: skip
         assert line in text
     # Resumable: the same command again skips every stage, the colony's too.
     marker = (out / "colony_validation" / "done.json").read_text()
@@ -358,7 +369,13 @@ def test_colony_settings_leave_the_reproduction_as_it_was() -> None:
     colony = dataclasses.replace(TINY, robots=3)
     # Without a colony (robots 1, the default): no colony stage, settings and keys as before.
     assert TINY.robots == 1 and TINY.colony() is None and "colony" not in TINY.stages()
-    assert not {"robots", "colony_blocking", "colony_validate_starts"} & set(TINY.to_dict())
+    assert not set(COLONY_FIELDS) & set(TINY.to_dict())
+    # The colony's learning options at their defaults leave a colony's settings as before.
+    assert not set(COLONY_OPTIONS) & set(colony.to_dict())
+    unseen = dataclasses.replace(colony, colony_robots_seen=False)
+    assert stage_key(unseen, "colony_validation")["colony_robots_seen"] is False
+    assert stage_key(unseen, "coverage") == stage_key(TINY, "coverage")
+    assert unseen.colony().robots_seen is False
     for stage in ("calibration", "navigation", "coverage", "validation", "robustness"):
         assert stage_key(colony, stage) == stage_key(TINY, stage)
     # The colony stages depend on the stages up to coverage and their own fields only.
@@ -379,6 +396,10 @@ def test_colony_settings_leave_the_reproduction_as_it_was() -> None:
         (["--blocking", "slide"], "--blocking is an option of the colony stages"),
         (["--robots", "1", "--blocking", "slide"], "--blocking is an option"),
         (["--robots", "40"], "--robots 40: cannot place robot"),
+        (["--robots-unseen"], "--robots-unseen is an option of the colony stages"),
+        (["--colony-fitness", "docks"], "--colony-fitness is an option of the colony stages"),
+        (["--robots", "3", "--start-power-spread", "-1"],
+         "--start-power-spread must be a finite number ≥ 0"),
     ],
 )
 def test_cli_rejects_bad_robots(

@@ -11,8 +11,8 @@ import argparse
 import os
 from pathlib import Path
 
-from evolve.settings import BLOCKING_RULES
-from infra.bounds import check_int
+from evolve.settings import BLOCKING_RULES, COLONY_FITNESSES
+from infra.bounds import check_int, check_nonnegative
 from infra.errors import InputError
 from servobot.cli.options import (
     add_envelope_option,
@@ -27,6 +27,8 @@ from servobot.reproduce.run import reproduce, resolve_settings
 from servobot.reproduce.settings import ROBUSTNESS_WORLDS
 
 PROG = "servobot reproduce"
+COLONY_OPTIONS = ("--blocking", "--colony-fitness", "--start-power-spread", "--robots-unseen")
+"""Options of the colony stages only (with ``--robots R``, R ≥ 2)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -68,6 +70,28 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --robots R: the table world's rule for a move another robot blocks, "
         "cancel (SPEC §7, default) or slide (docs/colony.md)",
     )
+    p.add_argument(
+        "--colony-fitness",
+        choices=COLONY_FITNESSES,
+        default=None,
+        help="with --robots R: what a colony run scores, as servobot evolve colony's "
+        "(squares, default; alive; per_step; docks)",
+    )
+    p.add_argument(
+        "--start-power-spread",
+        type=float,
+        default=None,
+        metavar="V",
+        help="with --robots R: robot i starts with 4.0 + i × V volts, capped at 5.0 V "
+        "(default 0), in the colony stage and both worlds of its validation",
+    )
+    p.add_argument(
+        "--robots-unseen",
+        action="store_true",
+        default=None,
+        help="with --robots R: the object sensors do not see the other robots (default: seen, "
+        "SPEC §7), in the colony stage and both worlds of its validation",
+    )
     add_executor_option(
         p, None, "process, serial with --workers 1 (validation and robustness runs)"
     )
@@ -90,11 +114,19 @@ def _run(args: argparse.Namespace) -> int:
         check_int(args.seed, "--seed", lo=0)
     if args.robots is not None:
         check_int(args.robots, "--robots", lo=1)
-    if args.blocking is not None and (args.robots or 1) < 2:
-        raise InputError("--blocking is an option of the colony stages (--robots R, R ≥ 2)")
+    for flag in COLONY_OPTIONS:
+        if getattr(args, flag[2:].replace("-", "_")) is not None and (args.robots or 1) < 2:
+            raise InputError(f"{flag} is an option of the colony stages (--robots R, R ≥ 2)")
+    if args.start_power_spread is not None:
+        check_nonnegative(args.start_power_spread, "--start-power-spread", "volts")
+    colony = {
+        "colony_blocking": args.blocking, "colony_fitness": args.colony_fitness,
+        "colony_start_power_spread": args.start_power_spread,
+        "colony_robots_seen": False if args.robots_unseen else None,
+    }  # fmt: skip
     settings = resolve_settings(
         quick=args.quick, seed=args.seed, validate_starts=args.validate_starts,
-        model=args.model, envelope=args.envelope, robots=args.robots, blocking=args.blocking,
+        model=args.model, envelope=args.envelope, robots=args.robots, **colony,
     )  # fmt: skip
     bars = GenerationBars(enabled=not args.no_progress)
     per_world = 0 if settings.model is not None else settings.robustness_starts

@@ -323,6 +323,11 @@ def _robots_cell(values: list[float], fmt: str = ".2f") -> str:
     return " / ".join(f"{v:{fmt}}" for v in values) or "—"
 
 
+def _start_powers(spread: float) -> str:
+    """The colony's start powers in words: equal, or staggered by ``spread`` volts."""
+    return f"staggered by {spread:g} V" if spread else "equal"
+
+
 def _colony_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Path]]:
     """The colony stages: the colony's Figure 9 and table-world test, its finalists in physics
     (gap, each robot's docks and station waits, tracks), and their recordings."""
@@ -331,7 +336,10 @@ def _colony_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Pa
         f"## 6. A colony of {r} robots sharing the station (SPEC §7)",
         "",
         f"Coverage learned by a colony of {r} (`servobot evolve colony`; table-world blocking "
-        f"`{s.colony_blocking}`), with the coverage stage's budget and test starts, the "
+        f"`{s.colony_blocking}`, fitness `{s.colony_fitness}`, start powers "
+        f"{_start_powers(s.colony_start_power_spread)}, the other robots "
+        f"{'seen' if s.colony_robots_seen else 'unseen'} by the object sensors), with the "
+        "coverage stage's budget and test starts, the "
         "navigation section `navigation/best.txt` fixed, on the calibrated table. Colony inner "
         "% = squares reached by any robot / 64.",
         "",

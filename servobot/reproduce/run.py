@@ -69,6 +69,7 @@ from infra.rundir import RECORD_FILE, run_folder
 from servobot.recording import Recording, calibration_recorder, log_calibration_result
 from servobot.reproduce.report import write_report
 from servobot.reproduce.settings import (
+    COLONY_FIELDS,
     ROBUSTNESS_WORLDS,
     STAGES,
     ReproduceError,
@@ -543,24 +544,20 @@ def resolve_settings(
     model: str | Path | None = None,
     envelope: str | Path | None = None,
     robots: int | None = None,
-    blocking: str | None = None,
+    **colony: Any,
 ) -> ReproduceSettings:
     """``settings`` (else paper scale, or ``quick_settings()``) with the overrides applied
     and checked (``check_settings``: a bad envelope file raises ``EnvelopeError``);
-    ``robots`` and ``blocking``: the colony stages' R and table-world blocking rule."""
+    ``robots``: the colony stages' R; ``colony``: their ``COLONY_FIELDS`` by name (e.g.
+    ``colony_blocking``, ``colony_fitness``). None leaves a setting as it is."""
+    unknown = set(colony) - set(COLONY_FIELDS)
+    if unknown:
+        raise TypeError(f"resolve_settings: not a colony setting: {', '.join(sorted(unknown))}")
     s = settings or (quick_settings() if quick else ReproduceSettings())
-    if robots is not None:
-        s = dataclasses.replace(s, robots=robots)
-    if blocking is not None:
-        s = dataclasses.replace(s, colony_blocking=blocking)
-    if envelope is not None:
-        s = dataclasses.replace(s, envelope=str(envelope))
-    if model is not None:
-        s = dataclasses.replace(s, model=str(model))
-    if seed is not None:
-        s = dataclasses.replace(s, seed=int(seed))
-    if validate_starts is not None:
-        s = dataclasses.replace(s, validate_starts=int(validate_starts))
+    overrides = {"robots": robots, **colony, "seed": seed, "validate_starts": validate_starts,
+                 "model": None if model is None else str(model),
+                 "envelope": None if envelope is None else str(envelope)}  # fmt: skip
+    s = dataclasses.replace(s, **{k: v for k, v in overrides.items() if v is not None})
     check_settings(s)
     return s
 

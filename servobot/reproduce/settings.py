@@ -14,6 +14,7 @@ from evolve.settings import (
     BLOCKING_RULES,
     ColonySettings,
     GASettings,
+    SettingsError,
     coverage_ga_settings,
     navigation_ga_settings,
 )
@@ -26,7 +27,11 @@ COLONY_STAGES = ("colony", "colony_validation")
 """The colony stages (SPEC §7), run only with ``ReproduceSettings.robots`` ≥ 2."""
 STAGES = ("calibration", "navigation", "coverage", "validation", "robustness", *COLONY_STAGES)
 """The stages of a reproduction, in order (the report is always rewritten)."""
-COLONY_FIELDS = ("robots", "colony_blocking", "colony_validate_starts")
+COLONY_OPTIONS = ("colony_fitness", "colony_start_power_spread", "colony_robots_seen")
+"""The colony's learning options (``ColonySettings`` fields): left out of
+``ReproduceSettings.to_dict`` at their defaults, so a colony run folder made before they
+existed resumes."""
+COLONY_FIELDS = ("robots", "colony_blocking", "colony_validate_starts", *COLONY_OPTIONS)
 """The settings of the colony stages: left out of ``ReproduceSettings.to_dict`` (so of
 ``settings.json`` and every stage key) without a colony, as before they existed."""
 ROBUSTNESS_WORLDS = tuple(BUILT_IN)
@@ -113,6 +118,15 @@ class ReproduceSettings:
     """The table world's rule for a move another robot blocks (``ColonySettings.blocking``):
     ``cancel`` (SPEC §7) or ``slide``; the colony evolves under it and the colony validation's
     table side runs it (physics blocks by contacts either way)."""
+    colony_fitness: str = ColonySettings().fitness
+    """What a colony run scores in the colony stage (``ColonySettings.fitness``, its weights at
+    their defaults): ``squares`` (SPEC §7, default), ``alive``, ``per_step`` or ``docks``."""
+    colony_start_power_spread: float = ColonySettings().start_power_spread
+    """Volts between the robots' start powers (``ColonySettings.start_power_spread``; 0,
+    default: every robot on 4.0 V), in the colony stage and both worlds of its validation."""
+    colony_robots_seen: bool = ColonySettings().robots_seen
+    """Whether the object sensors see the other robots (``ColonySettings.robots_seen``; True,
+    default, SPEC §7), in the colony stage and both worlds of its validation."""
     colony_validate_starts: int = 3
     """Colony starts (R poses each, ``evolve.starts.colony_starts``, seeded) per colony
     finalist in the physics colony validation, ``validate_max_steps`` gait steps per robot at
@@ -124,9 +138,15 @@ class ReproduceSettings:
 
     def colony(self) -> ColonySettings | None:
         """The colony of the colony stages; None without them (``robots`` < 2)."""
-        if self.robots < 2:
-            return None
-        return ColonySettings(robots=self.robots, blocking=self.colony_blocking)
+        return self._colony_settings() if self.robots >= 2 else None
+
+    def _colony_settings(self) -> ColonySettings:
+        """The ``ColonySettings`` of the colony fields (``SettingsError`` naming a bad one)."""
+        return ColonySettings(
+            robots=self.robots, blocking=self.colony_blocking, fitness=self.colony_fitness,
+            start_power_spread=self.colony_start_power_spread,
+            robots_seen=self.colony_robots_seen,
+        )  # fmt: skip
 
     def stages(self) -> tuple[str, ...]:
         """The stages this reproduction runs, in order: the colony stages only with a colony."""
@@ -181,10 +201,12 @@ class ReproduceSettings:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """The fields as a dict; without a colony, not ``COLONY_FIELDS``."""
+        """The fields as a dict; without a colony, not ``COLONY_FIELDS``; ``COLONY_OPTIONS``
+        only where they differ from their defaults."""
         d = dataclasses.asdict(self)
-        if self.colony() is None:
-            for f in COLONY_FIELDS:
+        defaults = ReproduceSettings()
+        for f in COLONY_FIELDS if self.robots < 2 else COLONY_OPTIONS:
+            if self.robots < 2 or d[f] == getattr(defaults, f):
                 del d[f]
         return d
 
@@ -224,7 +246,7 @@ _STAGE_FIELDS: dict[str, tuple[str, ...]] = {
     "coverage": ("coverage_populations", "coverage_population_size", "coverage_generations"),
     "validation": ("validate_starts", "validate_max_steps", "validate_navigation_starts"),
     "robustness": ("robustness_starts", "robustness_steps", "robustness_finalists"),
-    "colony": ("robots", "colony_blocking"),
+    "colony": ("robots", "colony_blocking", *COLONY_OPTIONS),
     "colony_validation": ("colony_validate_starts", "validate_max_steps"),
 }
 _ENVELOPE_STAGES = STAGES[STAGES.index("navigation") :]
@@ -250,7 +272,7 @@ def stage_key(settings: ReproduceSettings, stage: str) -> dict[str, Any]:
     d = settings.to_dict()
     key: dict[str, Any] = {}
     for s in _depends_on(stage):
-        key.update({f: d[f] for f in _STAGE_FIELDS[s]})
+        key.update({f: d[f] for f in _STAGE_FIELDS[s] if f in d})
     if settings.model is not None:
         key.update(model=settings.model, model_sha256=model_sha256(settings.model))
     envelope = settings.envelope_value()
@@ -261,7 +283,8 @@ def stage_key(settings: ReproduceSettings, stage: str) -> dict[str, Any]:
 
 def check_settings(s: ReproduceSettings) -> None:
     """Every budget is an integer ≥ 1 (settle cycles and seed ≥ 0; ``robots`` 1 = no colony),
-    and the blocking rule one of ``BLOCKING_RULES``, else ``ReproduceError``;
+    the blocking rule one of ``BLOCKING_RULES`` and the colony options valid
+    (``ColonySettings``), else ``ReproduceError``;
     a model file must be a usable ServoBot model (``check_model``); the envelope must load
     (``EnvelopeError`` naming it)."""
     if s.model is not None:
@@ -273,8 +296,12 @@ def check_settings(s: ReproduceSettings) -> None:
     if s.colony_blocking not in BLOCKING_RULES:
         raise ReproduceError(f"setting colony_blocking must be one of {', '.join(BLOCKING_RULES)}"
                              f", got {s.colony_blocking!r}")  # fmt: skip
+    try:
+        s._colony_settings()
+    except SettingsError as exc:
+        raise ReproduceError(f"colony settings: {exc}") from None
     for f in dataclasses.fields(s):
-        if f.name in ("model", "envelope", "colony_blocking"):
+        if f.name in ("model", "envelope", "colony_blocking", *COLONY_OPTIONS):
             continue
         v = getattr(s, f.name)
         low = 0 if f.name in ("calibration_settle_cycles", "seed") else 1
@@ -284,6 +311,7 @@ def check_settings(s: ReproduceSettings) -> None:
 
 __all__ = [
     "COLONY_FIELDS",
+    "COLONY_OPTIONS",
     "COLONY_STAGES",
     "ROBUSTNESS_WORLDS",
     "STAGES",
