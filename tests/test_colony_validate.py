@@ -78,6 +78,9 @@ def test_report_layout_tracks_and_figure(station_run):
     for world in ("table", "physics"):  # live at the end: step limit (or docked), of 2
         live = sum(b["end"]["name"] in ("step limit", "docked") for b in run[world]["robots"])
         assert s[world]["live_at_end_per_run"] == live
+        near = [b["end"]["name"] for b in run[world]["robots"]
+                if np.hypot(b["final_pose"][0] - 465, b["final_pose"][1] - 250) <= 70]  # fmt: skip
+        assert s[world]["ends_at_station"] == {e: near.count(e) for e in near}
     assert (out / "tracks0.png").stat().st_size > 10_000
     md = (out / "report.md").read_text()
     assert "## Per robot" in md and "gap table − physics" in md

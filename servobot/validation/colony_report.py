@@ -2,14 +2,15 @@
 track figures and the files (``servobot.validation.colony`` collects the per-run records).
 
 Per world: the colony's squares and inner squares (% of the 64 inner squares, the union of
-the robots'), the robots' own coverage, docks, how they ended, the robots live at the end
-(``evolve.interpreter.LIVE_ENDS``), station waits and blocked moves per run; in physics also
-the closest approach of two robot centres. The gap is table minus physics over the runs whose
-physics finished.
+the robots'), the robots' own coverage, docks, how they ended (in all and at the station),
+the robots live at the end (``evolve.interpreter.LIVE_ENDS``), station waits and blocked moves
+per run; in physics also the closest approach of two robot centres. The gap is table minus
+physics over the runs whose physics finished.
 """
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,10 @@ from servobot.validation.report import (
 )
 
 WORLDS = ("table", "physics")
+AT_STATION_CM = 70.0
+"""A robot ended at the station when its final centre lies within this distance of
+``WorldSettings.dock_point`` (cm): the docking box and the lane in front of it, where robots
+that queue or jam for the station end [chosen, for the report only]."""
 
 
 COLONY_GAP = (("inner_pct_pp", "inner_pct", 1.0), ("squares", "mean_squares", 1.0),
@@ -43,7 +48,15 @@ COLONY_GAP = (("inner_pct_pp", "inner_pct", 1.0), ("squares", "mean_squares", 1.
 """The gap table − physics of a colony: (name, key of the world summaries, scale)."""
 
 
-def _world_summary(recs: list[dict[str, Any]], n_inner: int) -> dict[str, Any]:
+def ended_at_station(robot: dict[str, Any], dock_point: tuple[float, float]) -> bool:
+    """Whether a robot record's final centre lies within ``AT_STATION_CM`` of ``dock_point``."""
+    x, y = robot["final_pose"][:2]
+    return bool(np.hypot(x - dock_point[0], y - dock_point[1]) <= AT_STATION_CM)
+
+
+def _world_summary(
+    recs: list[dict[str, Any]], n_inner: int, dock_point: tuple[float, float]
+) -> dict[str, Any]:
     """One world's means over its colony records."""
     if not recs:
         return {"runs": 0}
@@ -65,6 +78,7 @@ def _world_summary(recs: list[dict[str, Any]], n_inner: int) -> dict[str, Any]:
         "station_waits_per_run": float(np.mean([c["station_waits"] for c in colony])),
         "collisions_per_run": float(np.mean([c["collisions"] for c in colony])),
         "ends": count_ends(robots),
+        "ends_at_station": count_ends([b for b in robots if ended_at_station(b, dock_point)]),
         "live_at_end_per_run": float(
             np.mean([sum(b["end"]["code"] in LIVE_ENDS for b in r["robots"]) for r in recs])
         ),
@@ -81,8 +95,8 @@ def summarise_colony(
 ) -> dict[str, Any]:
     """Summary of colony run records: per world, and the gap over runs whose physics finished."""
     return summarise_runs(
-        runs, world, wall_s, _world_summary, COLONY_GAP, lambda r: r["colony"]["inner_squares"],
-        robots=len(runs[0]["start"]) if runs else 0,
+        runs, world, wall_s, partial(_world_summary, dock_point=world.dock_point), COLONY_GAP,
+        lambda r: r["colony"]["inner_squares"], robots=len(runs[0]["start"]) if runs else 0,
     )  # fmt: skip
 
 
@@ -152,7 +166,8 @@ def colony_summary_lines(report: dict[str, Any]) -> list[str]:
             f"colony inner {w['mean_inner_squares']:.2f} = {w['inner_pct']:.1f}% of "
             f"{s['inner_squares_total']} (squares {w['mean_squares']:.2f}); per robot inner "
             f"{w['robot_inner_pct']:.1f}%, docks {w['docks_per_robot']:.2f}, steps "
-            f"{w['robot_mean_steps']:.0f}, ends {w['ends']}; per run live at the end "
+            f"{w['robot_mean_steps']:.0f}, ends {w['ends']} (at the station "
+            f"{w.get('ends_at_station', '—')}); per run live at the end "
             f"{w['live_at_end_per_run']:.2f}, station waits "
             f"{w['station_waits_per_run']:.2f}, blocked moves {w['collisions_per_run']:.2f}, "
             f"colony steps {w['mean_colony_steps']:.0f}{closest}; {w['mean_wall_s']:.2f} s/run"

@@ -1,0 +1,131 @@
+"""Colony validations pooled: ``python -m servobot.validation.colony_pool DIR...``.
+
+Each DIR is a colony validation (``servobot validate --robots R``: ``DIR/report.json``) or a
+folder of them (``DIR/pop{k}/report.json``, as the reproduction's ``colony_validation``). The
+runs of every report found are pooled (each finalist's runs weigh alike when every finalist
+ran the same starts) and summarised per world over the runs whose physics finished: colony
+inner %, docks per robot, robots live at the end per run, and how the robots ended, in all
+and at the station (``colony_report.ended_at_station``, recomputed from the final poses, so
+reports written before that count existed pool too).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evolve.interpreter import LIVE_ENDS
+from infra.errors import InputError
+from servobot.validation.colony_report import WORLDS, ended_at_station
+
+PROG = "python -m servobot.validation.colony_pool"
+
+
+def report_files(folder: Path) -> list[Path]:
+    """``folder/report.json``, else ``folder/pop*/report.json`` in population order; an
+    ``InputError`` naming ``folder`` when it holds neither."""
+    own = folder / "report.json"
+    if own.is_file():
+        return [own]
+    found = sorted(folder.glob("pop*/report.json"), key=lambda p: (len(p.parent.name), p))
+    if not found:
+        raise InputError(f"{folder}: no report.json and no pop*/report.json in it")
+    return found
+
+
+def read_report(path: Path) -> dict[str, Any]:
+    """A colony validation's ``report.json``; an ``InputError`` naming ``path`` when it is not
+    readable JSON or lacks a field ``pool`` reads."""
+    try:
+        report = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a readable report ({exc})") from None
+    try:
+        pool([report])
+    except InputError:  # no run with physics: pools as nothing
+        pass
+    except (KeyError, TypeError, IndexError, ValueError) as exc:
+        raise InputError(f"{path}: not a colony validation report (bad or missing field "
+                         f"{exc})") from None  # fmt: skip
+    return report
+
+
+def pool(reports: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per world, over the runs of every colony report whose physics finished: ``runs``,
+    ``inner_pct`` (colony inner squares, % of the inner squares), ``docks_per_robot``,
+    ``live_per_run``, ``robots``, ``ends`` and ``ends_at_station`` (robots by end name);
+    ``gap_inner_pp`` = table − physics."""
+    out: dict[str, Any] = {}
+    for w in WORLDS:
+        inner, docks, live = [], [], []
+        ends: Counter[str] = Counter()
+        at_station: Counter[str] = Counter()
+        for rep in reports:
+            world = rep["settings"]["WorldSettings"]
+            n_inner, dock = (world["grid_n"] - 2) ** 2, tuple(world["dock_point"])
+            for run in rep["runs"]:
+                if not (run.get("table") and run.get("physics")):
+                    continue
+                rec = run[w]
+                inner.append(100.0 * rec["colony"]["inner_squares"] / n_inner)
+                live.append(sum(b["end"]["code"] in LIVE_ENDS for b in rec["robots"]))
+                for b in rec["robots"]:
+                    docks.append(b["docks"])
+                    ends[b["end"]["name"]] += 1
+                    if ended_at_station(b, dock):
+                        at_station[b["end"]["name"]] += 1
+        if not inner:
+            raise InputError("no colony run whose physics finished in the reports given")
+        out[w] = {
+            "runs": len(inner), "inner_pct": float(np.mean(inner)),
+            "docks_per_robot": float(np.mean(docks)), "live_per_run": float(np.mean(live)),
+            "robots": len(docks), "ends": dict(ends), "ends_at_station": dict(at_station),
+        }  # fmt: skip
+    out["gap_inner_pp"] = out["table"]["inner_pct"] - out["physics"]["inner_pct"]
+    return out
+
+
+def pool_markdown(pooled: dict[str, Any]) -> str:
+    """The pooled summary as a Markdown table: a row per world, ends as % of the robots."""
+    names = sorted({e for w in WORLDS for e in pooled[w]["ends"]})
+    rows = []
+    for w in WORLDS:
+        s = pooled[w]
+        cells = [f"{100 * s['ends'].get(e, 0) / s['robots']:.0f} % "
+                 f"({s['ends_at_station'].get(e, 0)} of {s['ends'].get(e, 0)})"
+                 for e in names]  # fmt: skip
+        rows.append(f"| {w} | {s['runs']} | {s['inner_pct']:.1f} | {s['docks_per_robot']:.2f} | "
+                    f"{s['live_per_run']:.2f} | {' | '.join(cells)} |")  # fmt: skip
+    head = ("| world | runs | colony inner % | docks / robot | live / run | "
+            + " | ".join(f"{e} (at the station)" for e in names) + " |")  # fmt: skip
+    return "\n".join([head, "|" + "---|" * (5 + len(names)), *rows,
+                      "", f"gap table − physics: {pooled['gap_inner_pp']:+.1f} pp"])  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the pooled summary; exit 0, or 2 naming a folder or report it cannot use."""
+    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    ap.add_argument("folders", type=Path, nargs="+", metavar="DIR",
+                    help="colony validation folders (report.json or pop*/report.json)")
+    ap.add_argument("--json", action="store_true", help="print the pooled numbers as JSON")
+    args = ap.parse_args(argv)
+    try:
+        reports = []
+        for path in (p for folder in args.folders for p in report_files(folder)):
+            reports.append(read_report(path))
+        pooled = pool(reports)
+    except InputError as exc:
+        print(f"{PROG}: {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps(pooled, indent=1) if args.json else pool_markdown(pooled))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,83 @@
+"""Pooling colony validations (``servobot.validation.colony_pool``) on hand-made reports."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from evolve.settings import WorldSettings
+from servobot.validation.colony_pool import main, pool, pool_markdown
+from servobot.validation.colony_report import ended_at_station
+
+WORLD = {"grid_n": 10, "dock_point": [465.0, 250.0]}
+STATION, FIELD = [460.0, 262.0, 90.0], [100.0, 100.0, 0.0]  # 13 cm and 403 cm from the dock
+
+
+def robot(end: str, code: int, pose: list[float], docks: int) -> dict:
+    return {"end": {"name": end, "code": code}, "final_pose": pose, "docks": docks}
+
+
+def run(inner: int, robots: list[dict], physics: bool = True) -> dict:
+    rec = {"colony": {"inner_squares": inner}, "robots": robots}
+    return {"table": rec, "physics": rec if physics else None}
+
+
+def report(runs: list[dict]) -> dict:
+    return {"settings": {"WorldSettings": WORLD}, "runs": runs}
+
+
+STEP_LIMIT, EMPTY = ("step limit", 0), ("power empty", 2)
+REPORTS = [
+    report([run(32, [robot(*STEP_LIMIT, FIELD, 3), robot(*EMPTY, STATION, 1)]),
+            run(64, [robot(*EMPTY, FIELD, 0), robot(*EMPTY, STATION, 2)]),
+            run(0, [robot(*STEP_LIMIT, FIELD, 9)], physics=False)]),  # no physics: left out
+    report([run(16, [robot(*STEP_LIMIT, STATION, 2), robot(*STEP_LIMIT, FIELD, 4)])]),
+]  # fmt: skip
+
+
+def test_ended_at_station_is_a_distance_from_the_dock_point() -> None:
+    dock = WorldSettings().dock_point
+    assert ended_at_station(robot(*EMPTY, [465.0 + 69.9, 250.0, 0.0], 0), dock)
+    assert not ended_at_station(robot(*EMPTY, [465.0, 250.0 - 70.1, 0.0], 0), dock)
+
+
+def test_pool_counts_runs_whose_physics_finished() -> None:
+    got = pool(REPORTS)
+    for w in ("table", "physics"):
+        s = got[w]
+        assert s["runs"] == 3 and s["robots"] == 6
+        assert s["inner_pct"] == pytest.approx(100 * (32 + 64 + 16) / 64 / 3)
+        assert s["docks_per_robot"] == pytest.approx((3 + 1 + 0 + 2 + 2 + 4) / 6)
+        assert s["live_per_run"] == pytest.approx((1 + 0 + 2) / 3)  # step limit is live
+        assert s["ends"] == {"step limit": 3, "power empty": 3}
+        assert s["ends_at_station"] == {"power empty": 2, "step limit": 1}
+    assert got["gap_inner_pp"] == 0.0
+    md = pool_markdown(got)
+    assert "| physics | 3 | 58.3 | 2.00 | 1.00 | 50 % (2 of 3) | 50 % (1 of 3) |" in md
+
+
+def test_cli_reads_a_folder_of_populations(tmp_path: Path, capsys) -> None:
+    for k, rep in enumerate(REPORTS):
+        (tmp_path / f"pop{k}").mkdir()
+        (tmp_path / f"pop{k}" / "report.json").write_text(json.dumps(rep))
+    assert main([str(tmp_path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == json.loads(json.dumps(pool(REPORTS)))
+    assert main([str(tmp_path / "pop0")]) == 0  # one validation's own report.json
+    assert "| table | 2 |" in capsys.readouterr().out
+
+
+def test_cli_names_what_it_cannot_use(tmp_path: Path, capsys) -> None:
+    assert main([str(tmp_path)]) == 2
+    assert f"{tmp_path}: no report.json and no pop*/report.json" in capsys.readouterr().err
+    (tmp_path / "report.json").write_text("{not json")
+    assert main([str(tmp_path)]) == 2
+    assert "report.json: not a readable report" in capsys.readouterr().err
+    (tmp_path / "report.json").write_text(json.dumps({"runs": [run(1, [])]}))
+    assert main([str(tmp_path)]) == 2
+    assert "report.json: not a colony validation report (bad or missing field 'settings')" \
+        in capsys.readouterr().err  # fmt: skip
+    (tmp_path / "report.json").write_text(json.dumps(report([run(1, [], physics=False)])))
+    assert main([str(tmp_path)]) == 2
+    assert "no colony run whose physics finished" in capsys.readouterr().err
