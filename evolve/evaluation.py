@@ -270,7 +270,8 @@ def evaluate_colony(
     ``evaluate``; robot r of start s draws with (key, s, r),
     the station block is the run's (robot 0's draw); ``colony.blocking`` says whether another
     robot cancels a blocked move or slides it along the contact tangent, ``colony.robots_seen``
-    whether the object sensors see the other robots. Equal to
+    whether the object sensors see the other robots, ``colony.contact_yaw_deg`` how far a
+    blocked move turns away from the contact. Equal to
     ``evolve.interpreter.run_colony`` with a ``TableColony``, run by run; with R = 1 equal to
     ``evaluate``.
     """
@@ -280,7 +281,8 @@ def evaluate_colony(
     draws = _draws(envelope, table, settings, envelope_key, colony.disc_radius, n_start, n_robots)
     limit = -1 if colony.colony_step_limit is None else colony.colony_step_limit
     params = (colony.disc_radius, colony.min_distance, colony.charge_steps, limit,
-              colony.blocking_code, int(colony.robots_seen))  # fmt: skip
+              colony.blocking_code, int(colony.robots_seen),
+              float(colony.contact_yaw_deg))  # fmt: skip
     team = None if partners is None else _decoded(_check_partners(partners, bits, n_robots, role))
     st, pose, out_run = kernel.run_colony_flat(
         *_decoded(bits),

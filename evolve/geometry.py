@@ -433,6 +433,22 @@ def slide_end(x, y, nx, ny, ox, oy):
 
 
 @register_jitable
+def contact_yaw(x, y, h, ox, oy, yaw):
+    """Heading change, degrees, of a robot at centre (x, y) with heading h (deg, clockwise
+    from north) whose move the robot centred (ox, oy) blocks, under
+    ``ColonySettings.contact_yaw_deg`` = ``yaw``: −yaw · sin b, b the bearing of (ox, oy)
+    from the heading (clockwise): a turn away from the contact, ``yaw`` for a robot abeam,
+    none for one dead ahead or astern; 0 when the centres coincide."""
+    dx = ox - x
+    dy = oy - y
+    d = math.sqrt(dx * dx + dy * dy)
+    if d == 0.0:
+        return 0.0
+    r = h * DEG2RAD
+    return -yaw * ((dx * math.cos(r) - dy * math.sin(r)) / d)
+
+
+@register_jitable
 def _contact(x, y, nx, ny, ox, oy):
     """A move from (x, y) to (nx, ny) against a contact point (ox, oy): (|(x, y) − (ox, oy)|,
     the unit normal ux, uy from the contact to (x, y) (unnormalised when that distance is 0),
@@ -578,6 +594,7 @@ __all__ = [
     "block_slide_end",
     "block_stops",
     "box_distance2",
+    "contact_yaw",
     "disc_bits",
     "disc_bits_within",
     "docked",

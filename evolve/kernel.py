@@ -72,6 +72,7 @@ from evolve.geometry import (
     block_bits,
     block_slide_end,
     block_stops,
+    contact_yaw,
     disc_bits_within,
     docked,
     killed,
@@ -176,10 +177,23 @@ def _slid(x, y, nx, ny, others, me, min_dist):
     return sx, sy, False
 
 
+@njit(cache=True)
+def _yaw(x, y, h, nx, ny, others, me, min_dist, yaw):
+    """Heading change, degrees, of a move from (x, y), heading h, to (nx, ny) that robots
+    block: ``geometry.contact_yaw`` summed over the robots of ``others`` (but row ``me``)
+    closer than ``min_dist`` to (nx, ny), in row order (``ColonySettings.contact_yaw_deg``).
+    Called on blocked moves only."""
+    turn = 0.0
+    for j in range(others.shape[0]):
+        if j != me and too_close(nx, ny, others[j, 0], others[j, 1], min_dist):
+            turn += contact_yaw(x, y, h, others[j, 0], others[j, 1], yaw)
+    return turn
+
+
 @njit(cache=True, inline="always")
 def _walk(
     gait, table, sigma, p, x, y, h, power, lo, hi, squares, inner, others, me, min_dist,
-    slide, run_env, key, cycle,
+    slide, yaw, run_env, key, cycle,
 ):  # fmt: skip
     """One gait cycle and the post-step checks, kill zone → power empty → mark square.
 
@@ -190,7 +204,8 @@ def _walk(
     (``_slid``, ``ColonySettings.blocking``); one into a station block that stops is
     cancelled, or slid along it keeping the heading (``Envelope.station_blocking``) unless
     another robot blocks the slid end. A cancelled move keeps the pose; the step still costs
-    and is checked.
+    and is checked. With ``yaw`` ≠ 0 a move that robots block (at its unslid end) then turns
+    by ``_yaw`` (``ColonySettings.contact_yaw_deg``), slid or cancelled.
     ``run_env`` = ``_run_env``'s tuple. Returns (x, y, h, power, lo, hi, squares, inner,
     end, blocked), end = −1 if the run goes on, blocked when another robot or the station
     block blocked the move (cancelled or slid).
@@ -203,6 +218,9 @@ def _walk(
         )
     nx, ny, nh = move(x, y, h, f, t, dh)
     blocked = _blocked(nx, ny, others, me, min_dist)
+    turn = 0.0
+    if blocked and yaw != 0.0:
+        turn = _yaw(x, y, h, nx, ny, others, me, min_dist, yaw)
     cancel = blocked
     if slide and blocked:
         nx, ny, cancel = _slid(x, y, nx, ny, others, me, min_dist)
@@ -215,6 +233,8 @@ def _walk(
             cancel = _blocked(nx, ny, others, me, min_dist)
     if not cancel:
         x, y, h = nx, ny, nh
+    if turn != 0.0:
+        h = wrap360(h + turn)
     power = power - p[P_GAIT_COST + gait]
     if killed(x, y, p):
         return x, y, h, power, lo, hi, squares, inner, END_KILL_ZONE, blocked
@@ -333,7 +353,7 @@ def run_one(
             gait = arg[g, k]
             x, y, h, power, lo, hi, squares, inner, end, _ = _walk(
                 gait, table, sigma, p, x, y, h, power, lo, hi, squares, inner, _NO_ROBOTS, -1,
-                0.0, False, run_env, key, steps,
+                0.0, False, 0.0, run_env, key, steps,
             )  # fmt: skip
             steps += 1
             branches = 0
@@ -355,7 +375,7 @@ def run_one(
                 for _ in range(n_backup):
                     x, y, h, power, lo, hi, squares, inner, end, _ = _walk(
                         backup, table, sigma, p, x, y, h, power, lo, hi, squares, inner,
-                        _NO_ROBOTS, -1, 0.0, False, run_env, key, steps,
+                        _NO_ROBOTS, -1, 0.0, False, 0.0, run_env, key, steps,
                     )  # fmt: skip
                     steps += 1
                     if end >= 0:
@@ -553,7 +573,8 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     ``code`` = decoded (loops (R, G), ops, arg, target (R, G, 4)), one row per robot (the
     same row R times for a colony of one chromosome); ``colony`` = (disc radius, minimum centre
     distance, charge steps, colony-step limit or −1, blocking code: ``BLOCK_SLIDE`` slides
-    blocked moves, 0 cancels them; 1 or 0: whether the object sensors see the other robots).
+    blocked moves, 0 cancels them; 1 or 0: whether the object sensors see the other robots;
+    the contact yaw, degrees: ``ColonySettings.contact_yaw_deg``).
     ``power0`` (R,): each robot's start power (``ColonySettings.start_powers``). ``pose``
     (R, 3) holds the start poses and receives the final ones; ``power`` (R,), ``st`` (R,
     S_COLUMNS), ``masks`` (R, 2) uint64 are the robots' state; ``out`` receives (colony
@@ -572,6 +593,7 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
     charge_steps, step_limit = int(colony[2]), int(colony[3])
     slide = int(colony[4]) == BLOCK_SLIDE
     seen = pose if int(colony[5]) != 0 else pose[:0]  # the discs the object sensors see
+    yaw = colony[6]
     max_branches = int(p[P_MAX_BRANCH])
     backup = int(p[P_BACKUP_GAIT])
     _start(loops, power0, max_steps, pose, power, st, masks)
@@ -616,7 +638,7 @@ def run_colony_one(code, nav_run, draws, p, power0, max_steps, colony, pose, pow
                 lo, hi, sq, inner = masks[i, 0], masks[i, 1], st[i, S_SQUARES], st[i, S_INNER]
                 x, y, h, pw, lo, hi, sq, inner, end, blocked = _walk(
                     gait, rows[i], sigma, p, x, y, h, pw, lo, hi, sq, inner, pose, i, min_dist,
-                    slide, run_env, keys[i], st[i, S_STEPS],
+                    slide, yaw, run_env, keys[i], st[i, S_STEPS],
                 )  # fmt: skip
                 pose[i, 0], pose[i, 1], pose[i, 2], power[i] = x, y, h, pw
                 masks[i, 0], masks[i, 1], st[i, S_SQUARES], st[i, S_INNER] = lo, hi, sq, inner

@@ -257,6 +257,18 @@ class ColonySettings:
     object sensors see the walls (and a seen station block) only; the other robots still
     block moves. In MuJoCo, False is a robot whose rangefinder rays pass above the other
     robots (no shell, the bumper invisible to rays: ``servo_mj.world.arena``)."""
+    contact_yaw_deg: float = 0.0
+    """How far a robot turns away from a robot that blocks its move, degrees, for one abeam
+    [chosen; issue 17, docs/colony.md "Where the colony's robots die"]. A move that robots
+    block (their discs within two radii of its unslid end) also turns the robot by
+    −``contact_yaw_deg`` · sin b per blocking robot, b the bearing of the other's centre from
+    the robot's heading at the move's start (clockwise; ``geometry.contact_yaw``): away from
+    the contact, most for a robot abeam, not at all for one dead ahead. The turn is added to
+    the heading the move leaves (slid or cancelled, ``blocking``). 0 (default, SPEC §7): no
+    turn. Measured in MuJoCo: a robot walking into a standing one 45° off its heading turns
+    6.6° a cycle further away from it than the gait's row says (mean over 4 gaits × 3
+    headings × both sides; ``tests/test_colony_contact_yaw.py``), i.e. 9.3° abeam. Only the
+    table world reads this: physics turns by contact."""
     sections: str = "shared"
     """What the colony stage evolves [chosen; issue 17, docs/colony.md "A team of sections:
     cooperative coevolution"]: ``"shared"`` (default, SPEC §7), one coverage section that
@@ -279,6 +291,9 @@ class ColonySettings:
         if self.sections not in COLONY_SECTIONS:
             allowed = ", ".join(repr(v) for v in COLONY_SECTIONS)
             raise SettingsError(f"sections must be one of {allowed}, got {self.sections!r}")
+        if not (is_finite_number(self.contact_yaw_deg) and self.contact_yaw_deg >= 0):
+            raise SettingsError(f"contact_yaw_deg must be a finite number ≥ 0 (degrees), got "
+                                f"{self.contact_yaw_deg!r}")  # fmt: skip
         if not isinstance(self.robots_seen, bool):
             raise SettingsError(f"robots_seen must be true or false, got {self.robots_seen!r}")
         if self.blocking not in BLOCKING_RULES:
@@ -328,9 +343,9 @@ class ColonySettings:
         it is not ``"squares"``, ``sections`` only when it is not ``"shared"``, ``alive_weight``
         only with ``fitness = "alive"``, ``dock_weight``, ``dock_cap`` only with ``fitness =
         "docks"`` (the fitnesses that read them), ``start_power_spread`` only when it is not
-        0 and ``robots_seen`` only when False: the record of a colony made before these fields
-        existed (``settings.json``, checked on resume) is unchanged, so such a run folder still
-        resumes."""
+        0, ``robots_seen`` only when False and ``contact_yaw_deg`` only when not 0: the record
+        of a colony made before these fields existed (``settings.json``, checked on resume) is
+        unchanged, so such a run folder still resumes."""
         d = dataclasses.asdict(self)
         if self.blocking == "cancel":
             del d["blocking"]
@@ -346,6 +361,8 @@ class ColonySettings:
             del d["sections"]
         if self.robots_seen:
             del d["robots_seen"]
+        if self.contact_yaw_deg == 0.0:
+            del d["contact_yaw_deg"]
         return d
 
 

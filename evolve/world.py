@@ -222,25 +222,44 @@ class TableColony:
     def step(self, i: int, gait: int) -> bool:
         """Apply one cycle of ``gait`` to robot ``i``. A move that would end closer than two
         radii to another robot is cancelled, or slid along the contact tangent, as
-        ``ColonySettings.blocking`` says; a move into a station block that stops is
+        ``ColonySettings.blocking`` says, and turned away from the robots that block it by
+        ``ColonySettings.contact_yaw_deg``; a move into a station block that stops is
         cancelled or slid along it (``Envelope.station_blocking``), and a slid end that
         another robot blocks is cancelled. Returns True when another robot or the station
         block blocked the move (cancelled or slid)."""
         x, y, h = self._poses[i]
         nx, ny, nh = geometry.move(x, y, h, *self._runs[i].row(gait))
         blockers = self._blockers(i, nx, ny)
+        end, by_block = self._moved(i, x, y, h, nx, ny, nh, blockers)
+        yaw = float(self.colony.contact_yaw_deg)
+        if blockers and yaw != 0.0:
+            turn = 0.0
+            for ox, oy in blockers:  # in robot order, as the kernel's ``_yaw``
+                turn += geometry.contact_yaw(x, y, h, ox, oy, yaw)
+            if turn != 0.0:
+                ex, ey, eh = end
+                end = (ex, ey, geometry.wrap360(eh + turn))
+        self._poses[i] = end
+        return bool(blockers) or by_block
+
+    def _moved(
+        self, i: int, x: float, y: float, h: float, nx: float, ny: float, nh: float,
+        blockers: list[tuple[float, float]],
+    ) -> tuple[tuple[float, float, float], bool]:  # fmt: skip
+        """Where robot ``i``'s move from (x, y, h) to (nx, ny, nh) that ``blockers`` block
+        ends (``step``'s rules but the contact yaw: (x, y, h) when cancelled), and whether a
+        station block stopped it."""
         if blockers:
             if not self._slide or len(blockers) > 1:
-                return True
+                return (x, y, h), False
             nx, ny = geometry.slide_end(x, y, nx, ny, *blockers[0])
             if self._blockers(i, nx, ny):
-                return True
+                return (x, y, h), False
         run = self._runs[i]
         nx, ny, nh, by_block = run.station_move(x, y, h, nx, ny, nh)
         if by_block and run.slides and self._blockers(i, nx, ny):
-            return True
-        self._poses[i] = (nx, ny, nh)
-        return bool(blockers) or by_block
+            return (x, y, h), True
+        return (nx, ny, nh), by_block
 
     def _blockers(self, i: int, x: float, y: float) -> list[tuple[float, float]]:
         """Centres of the robots but ``i`` closer than two radii to (x, y)."""

@@ -185,7 +185,7 @@ def test_blocking_is_validated_and_recorded_only_when_not_cancel():
     assert record == {k: v for k, v in dataclasses.asdict(ColonySettings()).items()
                       if k not in ("blocking", "fitness", "alive_weight", "dock_weight",
                                    "dock_cap", "start_power_spread", "sections",
-                                   "robots_seen")}  # fmt: skip
+                                   "robots_seen", "contact_yaw_deg")}  # fmt: skip
     assert json.loads(settings_json(SLIDE))["ColonySettings"]["blocking"] == "slide"
 
 

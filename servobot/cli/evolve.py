@@ -12,7 +12,7 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
     servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide
                                 --colony-fitness squares|alive|per_step|docks
                                 --alive-weight 8 --dock-weight 4 --dock-cap 2
-                                --start-power-spread 0 --robots-unseen
+                                --start-power-spread 0 --robots-unseen --contact-yaw 0
                                 --sections shared|team --team-from DIR]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
@@ -20,7 +20,8 @@ Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for
 R, ``--blocking`` its table-world blocking rule, ``--colony-fitness`` what a colony run
 scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`` (with
 ``docks``) its terms, ``--start-power-spread`` its robots' staggered start powers,
-``--robots-unseen`` object sensors blind to the other robots, ``--sections`` one section
+``--robots-unseen`` object sensors blind to the other robots, ``--contact-yaw`` the table
+world's turn away from a robot that blocks a move, ``--sections`` one section
 for every robot or a coevolved team of them;
 ``--nav-start-power``: ``NavigationSettings.start_power_v``).
 ``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
@@ -128,6 +129,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="colony only: robot i starts with 4.0 + i × V volts, capped at the charged 5.0 V "
         "(0, default: every robot on 4.0 V; 0.5: 4.0, 4.5, 5.0 V); "
         "ColonySettings.start_power_spread, docs/colony.md",
+    )
+    p.add_argument(
+        "--contact-yaw",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="colony only, table world: a blocked move also turns the robot away from each "
+        "robot that blocks it, DEG degrees for one abeam (ColonySettings.contact_yaw_deg; 0, "
+        "default; 9.3 measured in MuJoCo: python -m calibration.contact_yaw)",
     )
     p.add_argument(
         "--robots-unseen",
@@ -358,6 +368,8 @@ def _colony(args: argparse.Namespace) -> Any:
                                                      "--start-power-spread", "volts")  # fmt: skip
     if args.robots_unseen:
         kw["robots_seen"] = False
+    if args.contact_yaw is not None:
+        kw["contact_yaw_deg"] = check_nonnegative(args.contact_yaw, "--contact-yaw", "degrees")
     if args.robots is None:
         return ColonySettings(**kw)
     check_int(args.robots, "--robots", lo=1)
@@ -375,6 +387,7 @@ FITNESS_TERMS = (
 STAGE_OPTIONS = (
     ("robots", "colony"), ("blocking", "colony"), ("start_power_spread", "colony"),
     ("colony_fitness", "colony"), ("sections", "colony"), ("robots_unseen", "colony"),
+    ("contact_yaw", "colony"),
     ("nav_start_power", "navigation"),
 )  # fmt: skip
 """(option's field, the one stage that takes it): refused with any other stage."""

@@ -27,7 +27,8 @@ from servobot.reproduce.run import reproduce, resolve_settings
 from servobot.reproduce.settings import ROBUSTNESS_WORLDS
 
 PROG = "servobot reproduce"
-COLONY_OPTIONS = ("--blocking", "--colony-fitness", "--start-power-spread", "--robots-unseen")
+COLONY_OPTIONS = ("--blocking", "--colony-fitness", "--start-power-spread", "--robots-unseen",
+                  "--contact-yaw")
 """Options of the colony stages only (with ``--robots R``, R ≥ 2)."""
 
 
@@ -86,6 +87,15 @@ def build_parser() -> argparse.ArgumentParser:
         "(default 0), in the colony stage and both worlds of its validation",
     )
     p.add_argument(
+        "--contact-yaw",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="with --robots R: a blocked move also turns the robot away from each robot that "
+        "blocks it, DEG degrees for one abeam, in the table world (default 0; 9.3 measured in "
+        "MuJoCo: python -m calibration.contact_yaw)",
+    )
+    p.add_argument(
         "--robots-unseen",
         action="store_true",
         default=None,
@@ -119,10 +129,13 @@ def _run(args: argparse.Namespace) -> int:
             raise InputError(f"{flag} is an option of the colony stages (--robots R, R ≥ 2)")
     if args.start_power_spread is not None:
         check_nonnegative(args.start_power_spread, "--start-power-spread", "volts")
+    if args.contact_yaw is not None:
+        check_nonnegative(args.contact_yaw, "--contact-yaw", "degrees")
     colony = {
         "colony_blocking": args.blocking, "colony_fitness": args.colony_fitness,
         "colony_start_power_spread": args.start_power_spread,
         "colony_robots_seen": False if args.robots_unseen else None,
+        "colony_contact_yaw_deg": args.contact_yaw,
     }  # fmt: skip
     settings = resolve_settings(
         quick=args.quick, seed=args.seed, validate_starts=args.validate_starts,

@@ -328,6 +328,11 @@ def _start_powers(spread: float) -> str:
     return f"staggered by {spread:g} V" if spread else "equal"
 
 
+def _contact_yaw(deg: float) -> str:
+    """The contact yaw in words (nothing when 0)."""
+    return f", a blocked move turning {deg:g}° away from a robot abeam" if deg else ""
+
+
 def _colony_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Path]]:
     """The colony stages: the colony's Figure 9 and table-world test, its finalists in physics
     (gap, each robot's docks and station waits, tracks), and their recordings."""
@@ -338,7 +343,8 @@ def _colony_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Pa
         f"Coverage learned by a colony of {r} (`servobot evolve colony`; table-world blocking "
         f"`{s.colony_blocking}`, fitness `{s.colony_fitness}`, start powers "
         f"{_start_powers(s.colony_start_power_spread)}, the other robots "
-        f"{'seen' if s.colony_robots_seen else 'unseen'} by the object sensors), with the "
+        f"{'seen' if s.colony_robots_seen else 'unseen'} by the object sensors"
+        f"{_contact_yaw(s.colony_contact_yaw_deg)}), with the "
         "coverage stage's budget and test starts, the "
         "navigation section `navigation/best.txt` fixed, on the calibrated table. Colony inner "
         "% = squares reached by any robot / 64.",

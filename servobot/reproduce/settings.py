@@ -27,7 +27,8 @@ COLONY_STAGES = ("colony", "colony_validation")
 """The colony stages (SPEC §7), run only with ``ReproduceSettings.robots`` ≥ 2."""
 STAGES = ("calibration", "navigation", "coverage", "validation", "robustness", *COLONY_STAGES)
 """The stages of a reproduction, in order (the report is always rewritten)."""
-COLONY_OPTIONS = ("colony_fitness", "colony_start_power_spread", "colony_robots_seen")
+COLONY_OPTIONS = ("colony_fitness", "colony_start_power_spread", "colony_robots_seen",
+                  "colony_contact_yaw_deg")
 """The colony's learning options (``ColonySettings`` fields): left out of
 ``ReproduceSettings.to_dict`` at their defaults, so a colony run folder made before they
 existed resumes."""
@@ -127,6 +128,10 @@ class ReproduceSettings:
     colony_robots_seen: bool = ColonySettings().robots_seen
     """Whether the object sensors see the other robots (``ColonySettings.robots_seen``; True,
     default, SPEC §7), in the colony stage and both worlds of its validation."""
+    colony_contact_yaw_deg: float = ColonySettings().contact_yaw_deg
+    """How far a blocked move turns the robot away from a robot abeam, degrees
+    (``ColonySettings.contact_yaw_deg``; 0, default), in the colony stage and the table side
+    of its validation."""
     colony_validate_starts: int = 3
     """Colony starts (R poses each, ``evolve.starts.colony_starts``, seeded) per colony
     finalist in the physics colony validation, ``validate_max_steps`` gait steps per robot at
@@ -145,7 +150,7 @@ class ReproduceSettings:
         return ColonySettings(
             robots=self.robots, blocking=self.colony_blocking, fitness=self.colony_fitness,
             start_power_spread=self.colony_start_power_spread,
-            robots_seen=self.colony_robots_seen,
+            robots_seen=self.colony_robots_seen, contact_yaw_deg=self.colony_contact_yaw_deg,
         )  # fmt: skip
 
     def stages(self) -> tuple[str, ...]:
