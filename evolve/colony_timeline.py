@@ -68,7 +68,7 @@ from evolve.interpreter import (
     ColonyResult,
     run_colony,
 )
-from evolve.settings import ColonySettings, WorldSettings
+from evolve.settings import ColonySettings, WorldSettings, settings_from_record
 from evolve.starts import colony_starts
 from evolve.table import GaitTable, load_table
 from evolve.world import TableColony
@@ -332,24 +332,6 @@ def finalists(run_dir: str | Path) -> list[Path]:
     return sorted(paths, key=lambda p: int(p.stem[8:]))
 
 
-def _tuples(v: Any) -> Any:
-    """JSON lists back into the tuples of a settings dataclass."""
-    return tuple(_tuples(x) for x in v) if isinstance(v, list) else v
-
-
-def _settings(cls: type, doc: Any, name: str) -> Any:
-    if not isinstance(doc, dict):
-        raise TimelineError(f"{name}: no {cls.__name__} object")
-    known = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(doc) - known)
-    if unknown:
-        raise TimelineError(f"{name}: {cls.__name__} has unknown fields {unknown}")
-    try:
-        return cls(**{k: _tuples(v) for k, v in doc.items()})
-    except (TypeError, ValueError) as exc:
-        raise TimelineError(f"{name}: {cls.__name__}: {exc}") from exc
-
-
 def run_settings(
     run_dir: str | Path,
 ) -> tuple[WorldSettings, ColonySettings, np.ndarray | None, str | None]:
@@ -364,8 +346,9 @@ def run_settings(
     doc = read_json(path, what="colony settings", error=TimelineError)
     if not isinstance(doc, dict):
         raise TimelineError(f"{path}: not a JSON object")
-    world = _settings(WorldSettings, doc.get("WorldSettings"), str(path))
-    colony = _settings(ColonySettings, doc.get("ColonySettings"), str(path))
+    world = settings_from_record(WorldSettings, doc.get("WorldSettings"), str(path), TimelineError)
+    colony = settings_from_record(ColonySettings, doc.get("ColonySettings"), str(path),
+                                  TimelineError)  # fmt: skip
     table = doc.get("table") if isinstance(doc.get("table"), dict) else {}
     values = table.get("values")
     arr = None if values is None else np.asarray(values, dtype=np.float64)
@@ -467,7 +450,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     name = FIGURE_NAME if args.others == "as-is" else FIGURE_NAME.replace(".", f"-{args.others}.")
     out = args.out if args.out is not None else args.run_dir / "colony" / name
-    c = ColonySettings(**{k: _tuples(v) for k, v in doc["ColonySettings"].items()})
+    c = settings_from_record(ColonySettings, doc["ColonySettings"], str(out), TimelineError)
     title = (
         f"{args.run_dir}: a colony of {c.robots} ({c.blocking}, fitness {c.fitness}"
         f"{'' if c.robots_seen else ', robots unseen'}), "

@@ -522,6 +522,28 @@ def settings_json(*objs: Any) -> str:
     )  # fmt: skip
 
 
+def settings_from_record(
+    cls: type, doc: Any, name: str, error: type[Exception] = SettingsError
+) -> Any:
+    """The ``cls`` settings dataclass of a recorded object (``settings_json``'s, JSON lists
+    back into tuples); ``error`` naming ``name`` when ``doc`` is not such an object or has a
+    field ``cls`` lacks or refuses."""
+    if not isinstance(doc, dict):
+        raise error(f"{name}: no {cls.__name__} object")
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(doc) - known)
+    if unknown:
+        raise error(f"{name}: {cls.__name__} has unknown fields {unknown}")
+
+    def tuples(v: Any) -> Any:
+        return tuple(tuples(x) for x in v) if isinstance(v, list) else v
+
+    try:
+        return cls(**{k: tuples(v) for k, v in doc.items()})
+    except (TypeError, ValueError) as exc:
+        raise error(f"{name}: {cls.__name__}: {exc}") from exc
+
+
 __all__ = [
     "BLOCKING_RULES",
     "COLONY_FITNESSES",
@@ -533,6 +555,7 @@ __all__ = [
     "NavigationSettings",
     "WorldSettings",
     "navigation_ga_settings",
+    "settings_from_record",
     "settings_json",
     "with_table_power",
 ]

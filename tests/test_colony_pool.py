@@ -5,9 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from evolve.settings import WorldSettings
+from evolve.settings import ColonySettings, WorldSettings
+from infra.errors import InputError
 from servobot.validation.colony_pool import main, pool, pool_markdown
 from servobot.validation.colony_report import ended_at_station
 
@@ -81,3 +83,45 @@ def test_cli_names_what_it_cannot_use(tmp_path: Path, capsys) -> None:
     (tmp_path / "report.json").write_text(json.dumps(report([run(1, [], physics=False)])))
     assert main([str(tmp_path)]) == 2
     assert "no colony run whose physics finished" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def pushing_report(tmp_path_factory):
+    """A colony validation (both worlds) of robot 0 walking into robot 1 front-right of it."""
+    from chromosome_text import G, chrom, gene
+
+    from evolve.table import PAPER_TABLE
+    from servobot.validation.colony import validate_colony
+
+    walk = chrom(gene("00", G(8), G(8), G(8), G(8)))
+    starts = np.array([[[200.0, 200.0, 0.0], [221.0, 224.0, 0.0]]])
+    out = tmp_path_factory.mktemp("pool")
+    validate_colony(walk, starts, table=PAPER_TABLE, colony=ColonySettings(robots=2),
+                    workers=1, max_steps=3, out_dir=out)  # fmt: skip
+    return out, json.loads((out / "report.json").read_text())
+
+
+def test_replay_reruns_the_table_side_with_a_changed_rule(pushing_report):
+    from servobot.validation.colony_pool import replay
+
+    _, rep = pushing_report
+    same = replay(rep)
+    strip = [{**r, "table": {**r["table"], "wall_s": 0.0}} for r in rep["runs"]]
+    assert same["runs"] == strip and same["settings"] == rep["settings"]
+    turned = replay(rep, contact_yaw_deg=9.3)
+    (run,) = turned["runs"]
+    assert run["physics"] == rep["runs"][0]["physics"]  # physics is the report's
+    old, new = rep["runs"][0]["table"]["robots"][0], run["table"]["robots"][0]
+    assert old["collisions"] > 0 and new["final_pose"][2] != old["final_pose"][2]
+    with pytest.raises(InputError, match="replay: ColonySettings has unknown fields \\['yaw'\\]"):
+        replay(rep, yaw=1.0)
+    with pytest.raises(InputError, match="replay: ColonySettings: contact_yaw_deg must be"):
+        replay(rep, contact_yaw_deg=-1.0)
+
+
+def test_cli_replay(pushing_report, capsys):
+    out, _ = pushing_report
+    assert main([str(out), "--replay", "contact_yaw_deg=9.3", "blocking=slide", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["table"]["runs"] == 1
+    assert main([str(out), "--replay", "contact_yaw_deg"]) == 2
+    assert "--replay: FIELD=VALUE expected, got 'contact_yaw_deg'" in capsys.readouterr().err

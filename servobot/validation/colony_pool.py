@@ -1,4 +1,5 @@
-"""Colony validations pooled: ``python -m servobot.validation.colony_pool DIR...``.
+"""Colony validations pooled: ``python -m servobot.validation.colony_pool DIR... [--replay
+FIELD=VALUE ...]``.
 
 Each DIR is a colony validation (``servobot validate --robots R``: ``DIR/report.json``) or a
 folder of them (``DIR/pop{k}/report.json``, as the reproduction's ``colony_validation``). The
@@ -7,6 +8,12 @@ ran the same starts) and summarised per world over the runs whose physics finish
 inner %, docks per robot, robots live at the end per run, and how the robots ended, in all
 and at the station (``colony_report.ended_at_station``, recomputed from the final poses, so
 reports written before that count existed pool too).
+
+``--replay`` runs every report's colony starts again in the table world (the report's
+chromosome, gait table, ``WorldSettings`` and ``ColonySettings`` with the given fields
+replaced, e.g. ``contact_yaw_deg=9.3`` or ``blocking=cancel``) and pools those table runs
+against the report's physics runs: what a table-world rule would have predicted for the same
+colonies (issue 17: which rule makes the table world crowd as physics does).
 """
 
 from __future__ import annotations
@@ -20,8 +27,12 @@ from typing import Any
 
 import numpy as np
 
-from evolve.interpreter import LIVE_ENDS
+from evolve.codec import parse_chromosome
+from evolve.interpreter import LIVE_ENDS, run_colony
+from evolve.settings import ColonySettings, WorldSettings, settings_from_record
+from evolve.world import TableColony
 from infra.errors import InputError
+from servobot.validation.colony import colony_record
 from servobot.validation.colony_report import WORLDS, ended_at_station
 
 PROG = "python -m servobot.validation.colony_pool"
@@ -54,6 +65,29 @@ def read_report(path: Path) -> dict[str, Any]:
         raise InputError(f"{path}: not a colony validation report (bad or missing field "
                          f"{exc})") from None  # fmt: skip
     return report
+
+
+def replay(report: dict[str, Any], **changes: Any) -> dict[str, Any]:
+    """``report`` with the table record of every run whose physics finished replaced by the
+    same colony start run again in the table world, its ``ColonySettings`` fields ``changes``
+    replaced (``InputError`` naming a bad field or value)."""
+    name = "replay"
+    settings = report["settings"]
+    world = settings_from_record(WorldSettings, settings["WorldSettings"], name, InputError)
+    doc = {**settings["ColonySettings"], **changes}
+    colony = settings_from_record(ColonySettings, doc, name, InputError)
+    bits = parse_chromosome(report["chromosome"])
+    table = np.asarray(report["table"]["values"], dtype=np.float64)
+    runs = []
+    for run in report["runs"]:
+        if run.get("table") and run.get("physics"):
+            start = np.array([[p["x"], p["y"], p["h"]] for p in run["start"]])
+            res = run_colony(bits, TableColony(table, start, world, colony), mode="coverage",
+                             settings=world, colony=colony,
+                             max_steps=settings["max_steps"])  # fmt: skip
+            run = {**run, "table": colony_record(res, 0.0)}
+        runs.append(run)
+    return {**report, "runs": runs}
 
 
 def pool(reports: list[dict[str, Any]]) -> dict[str, Any]:
@@ -108,17 +142,38 @@ def pool_markdown(pooled: dict[str, Any]) -> str:
                       "", f"gap table − physics: {pooled['gap_inner_pp']:+.1f} pp"])  # fmt: skip
 
 
+def _changes(items: list[str]) -> dict[str, Any]:
+    """``FIELD=VALUE`` items as a dict, each value read as JSON, else kept as a string."""
+    out = {}
+    for item in items:
+        field, sep, value = item.partition("=")
+        if not sep or not field:
+            raise InputError(f"--replay: FIELD=VALUE expected, got {item!r}")
+        try:
+            out[field] = json.loads(value)
+        except ValueError:
+            out[field] = value
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the pooled summary; exit 0, or 2 naming a folder or report it cannot use."""
     ap = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     ap.add_argument("folders", type=Path, nargs="+", metavar="DIR",
                     help="colony validation folders (report.json or pop*/report.json)")
+    ap.add_argument("--replay", nargs="+", metavar="FIELD=VALUE", default=None,
+                    help="run the table side again with these ColonySettings fields replaced "
+                         "(JSON values, e.g. contact_yaw_deg=9.3 blocking='\"cancel\"'; "
+                         "a bare word is a string)")  # fmt: skip
     ap.add_argument("--json", action="store_true", help="print the pooled numbers as JSON")
     args = ap.parse_args(argv)
     try:
+        changes = _changes(args.replay or [])
         reports = []
         for path in (p for folder in args.folders for p in report_files(folder)):
             reports.append(read_report(path))
+        if args.replay is not None:
+            reports = [replay(r, **changes) for r in reports]
         pooled = pool(reports)
     except InputError as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
