@@ -13,11 +13,13 @@ import numpy as np
 import pytest
 from chromosome_text import G, chrom, gene
 from test_colony_fitness import tiny_colony_cli
-from test_colony_kernel import NEAR_STATION, assert_colony_kernel_equals_interpreter
+from test_colony_kernel import (
+    assert_colony_kernel_equals_interpreter,
+    assert_station_colonies_match,
+)
 
 from evolve import evaluate_colony, geometry
 from evolve.codec import write_chromosome
-from evolve.envelope import Envelope
 from evolve.settings import ColonySettings, SettingsError, WorldSettings, settings_json
 from evolve.starts import colony_starts
 from evolve.table import PAPER_TABLE
@@ -90,16 +92,8 @@ def test_random_colonies_with_the_contact_yaw_match_the_interpreter(blocking):
 
 
 def test_colonies_at_the_station_with_the_contact_yaw_match_in_an_envelope():
-    rng = np.random.default_rng(412)
     colony = ColonySettings(blocking="slide", contact_yaw_deg=9.3, start_power_spread=0.5)
-    genomes = rng.integers(0, 2, size=(150, 16, 30), dtype=np.uint8)
-    genomes[:, 0, :9] = [0, 0, 1, 1, 0, 0, 0, 0, 0]  # gene 0 ×∞, first: if low-power goto 8
-    envelope = Envelope(scatter_scale=1.0, bias_scale=1.0, station_seen_p=1.0, reach_units=8.0,
-                        station_stops=True, station_blocking="slide")  # fmt: skip
-    ev = assert_colony_kernel_equals_interpreter(
-        genomes, colony_starts(rng, 3, NEAR_STATION, colony), colony=colony, start_power=3.95,
-        envelope=envelope, envelope_key=(5, 2),
-    )  # fmt: skip
+    ev = assert_station_colonies_match(412, colony, (5, 2))
     assert ev.docks.sum() > 20 and ev.collisions.sum() > 50
 
 

@@ -67,6 +67,24 @@ def assert_colony_kernel_equals_interpreter(
     return ev
 
 
+STATION_ENVELOPE = Envelope(scatter_scale=1.0, bias_scale=1.0, station_seen_p=1.0,
+                            reach_units=8.0, station_stops=True,
+                            station_blocking="slide")  # fmt: skip
+"""Every aspect on, the station block seen and stopping, slid along."""
+
+
+def assert_station_colonies_match(seed, colony, envelope_key):
+    """150 random colonies of 3 starting near the station on low power (gene 0 first: if
+    low power go to the navigation section), in ``STATION_ENVELOPE``: the kernel equals the
+    interpreter; returns the evaluation."""
+    rng = np.random.default_rng(seed)
+    genomes = rng.integers(0, 2, size=(150, 16, 30), dtype=np.uint8)
+    genomes[:, 0, :9] = [0, 0, 1, 1, 0, 0, 0, 0, 0]  # gene 0 ×∞, first: if low-power goto 8
+    return assert_colony_kernel_equals_interpreter(
+        genomes, colony_starts(rng, 3, NEAR_STATION, colony), colony=colony, start_power=3.95,
+        envelope=STATION_ENVELOPE, envelope_key=envelope_key,
+    )  # fmt: skip
+
 def test_random_colonies_match():
     rng = np.random.default_rng(21)
     genomes = rng.integers(0, 2, size=(400, 16, 30), dtype=np.uint8)
