@@ -38,7 +38,8 @@ TINY = ReproduceSettings(
 )  # fmt: skip
 """Smaller than --quick: seconds, but every stage and file of a full run."""
 COLONY_ARGV = ["--quick", "--robots", "3", "--colony-fitness", "alive", "--start-power-spread",
-               "0.5", "--robots-unseen", "--workers", "1", "--no-progress"]  # fmt: skip
+               "0.5", "--robots-unseen", "--contact-yaw", "9.3", "--workers", "1",
+               "--no-progress"]  # fmt: skip
 """``servobot reproduce --quick --robots 3`` with every colony option (made tiny:
 ``quick_settings`` patched to TINY)."""
 
@@ -320,6 +321,7 @@ def test_colony_stages_evolve_validate_and_report(colony_dir: Path) -> None:
     for colony in (evolved, validated["ColonySettings"]):
         assert (colony["start_power_spread"], colony["robots_seen"]) == (0.5, False)
     assert evolved["fitness"] == "alive"
+    assert evolved["contact_yaw_deg"] == validated["ColonySettings"]["contact_yaw_deg"] == 9.3
     # Each colony finalist in physics with R robots, from the same seeded colony starts.
     starts = np.asarray(json.loads((out / "colony_validation/starts.json").read_text())["starts"])
     assert starts.shape == (TINY.colony_validate_starts, r, 3)
@@ -349,7 +351,8 @@ def test_colony_stages_evolve_validate_and_report(colony_dir: Path) -> None:
                  "`rerun colony_validation/pop0/run0.rrd` (2 recordings in "
                  "`colony_validation/pop0/`)", f"**{val['gap_inner_pp']:+.1f}**",
                  "## 7. Recordings", "## 8. Settings", '"robots": 3',
-                 "fitness `alive`, start powers staggered by 0.5 V, the other robots unseen",
+                 "fitness `alive`, start powers staggered by 0.5 V, the other robots unseen "
+                 "by the object sensors, a blocked move turning 9.3° away from a robot abeam",
                  '"colony_robots_seen": false'):  # fmt: skip
         assert line in text
     # Resumable: the same command again skips every stage, the colony's too.
