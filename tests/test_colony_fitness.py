@@ -307,7 +307,7 @@ def test_the_record_names_fitness_only_when_not_squares():
     # the default: the record of a colony made before the fields existed
     record = json.loads(settings_json(ColonySettings()))["ColonySettings"]
     new_fields = ("blocking", "fitness", "alive_weight", "dock_weight", "dock_cap")
-    new_fields += ("start_power_spread", "sections", "robots_seen")
+    new_fields += ("start_power_spread", "sections", "robots_seen", "contact_yaw_deg")
     before = {k: v for k, v in dataclasses.asdict(ColonySettings()).items() if k not in new_fields}
     assert record == before
     alive = json.loads(settings_json(ColonySettings(fitness="alive", alive_weight=4.0)))

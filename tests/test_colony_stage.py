@@ -48,11 +48,11 @@ def test_outputs_and_their_numbers(tiny_run):
         assert (folder / f"figure10_pop{k}.png").stat().st_size > 10_000
     assert (folder / "figure9.png").read_bytes()[:4] == b"\x89PNG"
     assert json.loads((folder / "summary.json").read_text())["robots"] == 3
-    # every field but ``blocking``, ``fitness`` and its weights and cap, and the start power
-    # spread at its default: the record of the colonies made before them
+    # every field but ``blocking``, ``fitness`` and its weights and cap, and the fields added
+    # after them at their defaults: the record of the colonies made before them
     record = dataclasses.asdict(ColonySettings())
     for field in ("blocking", "fitness", "alive_weight", "dock_weight", "dock_cap",
-                  "start_power_spread", "sections", "robots_seen"):
+                  "start_power_spread", "sections", "robots_seen", "contact_yaw_deg"):
         del record[field]
     assert summary["settings"]["ColonySettings"] == record
     # The final test, redone independently: the written bests from the stage's test starts.

@@ -64,10 +64,11 @@ PINS = {
         "tracks.npz": "cf3f4e37c5320735a228ef46f80fabcb4042df44a4bb774a5a1499fa7c709d24",
         "settings.json": "efa80b1a883e24bd0ee7ee5b00507686550ba4d41743db192448886e62f4a8c2",
     },
-    # re-pinned in issue 17: the colony reports gained live_at_end_per_run (nothing else moved)
+    # re-pinned in issue 17: the colony reports gained live_at_end_per_run, then ends_at_station
+    # (nothing else moved)
     "colony": {
-        "report.json": "16169132fc0ed7782bc707094e6e2ebf5d3756230774ab120c669584d0713c42",
-        "report.md": "08bbbe501eff73d91aa999b3e18af2315ba439543a9a366a5f6620e54a3e28bd",
+        "report.json": "7a0c6101a5c0ea814a76d4483da31d5c99695f1864dc6e81201e95e5113efb8a",
+        "report.md": "0f9c86a3c4acb0d9e7fe5441846a4dae6c595fa7a2f43b372c5dea2ae62cfeac",
         "tracks.npz": "b412e55daefe102968990baba6507a56a2af4d9a5579957d6b062ce0d05d792c",
         "settings.json": "3759159297c235eb2b9c7605fb198edd95921b4b0d89f23caf8684ffa73f2d56",
     },
