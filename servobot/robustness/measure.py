@@ -37,7 +37,9 @@ import numpy as np
 from evolve.codec import format_chromosome
 from evolve.envelope import DEFAULT, NONE, TRAINING_DEFAULTS, Envelope, load_envelope
 from evolve.table import load_table
+from infra.errors import InputError
 from infra.io import write_report
+from servobot.cli.runner import run_main
 from servobot.progress import RunBar, progress_bar
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
 from servobot.robustness.ranking import (
@@ -141,7 +143,7 @@ def _markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m servobot.robustness.measure",
         description=__doc__,
@@ -160,12 +162,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tune", action="store_true")
     p.add_argument("--workers", type=int, default=None)
     p.add_argument("--out", type=Path, required=True)
-    a = p.parse_args(argv)
+    return p
+
+
+def _measure(a: argparse.Namespace, _command: str) -> int:
+    """The measurement of the module docstring for parsed arguments ``a``."""
     envelope, table = load_envelope(a.envelope), load_table(a.table)
     if a.per_population < 0 or (a.per_population == 0 and not a.bests):
-        p.error("--per-population must be ≥ 1, or 0 with --bests (the bests alone)")
+        raise InputError("--per-population must be ≥ 1, or 0 with --bests (the bests alone)")
     if a.tune and a.per_population == 0:
-        p.error("--tune scores the top-20 % sample: give --per-population ≥ 1")
+        raise InputError("--tune scores the top-20 % sample: give --per-population ≥ 1")
     samples = {"top20": top_genomes(a.run, a.per_population)} if a.per_population else {}
     if a.bests:
         samples["generation_bests"] = generation_bests(a.run)
@@ -228,6 +234,14 @@ def main(argv: list[str] | None = None) -> int:
         )
     write_report(a.out, "ranking", out, _markdown(out))
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Ctrl-C or SIGTERM stops the pool's workers and keeps the finished physics cells; the
+    same command resumes."""
+    p = _parser()
+    return run_main(p.prog, p, argv, _measure,
+                    lambda a: f"the finished physics cells under {a.out / 'matrix'}")  # fmt: skip
 
 
 if __name__ == "__main__":
