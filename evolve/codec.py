@@ -290,6 +290,54 @@ def disassemble(bits: np.ndarray, *, navigation_offset: bool = False) -> str:
     return "\n".join(lines) + "\n"
 
 
+def expressed_mask(bits: np.ndarray) -> np.ndarray:
+    """(G, 30) bool: the bits of one chromosome (8 or 16 genes) that can change what it does
+    (SPEC §4). Not expressed: the genes no path reaches, the instructions after a branch whose test
+    always holds (test 0, ``{}``) and that gene's loop count, the two unused bits of a gait
+    instruction, and the target of the coverage section's low-power test in a full
+    chromosome (it goes to gene 8). A section's entry (gene 0; gene 8 too in a full
+    chromosome: low power and navigation runs start there) is reached; a branch with any
+    other test may go either way. The mask depends on the expressed bits alone."""
+    arr = check_bits(bits)
+    n = arr.shape[0]
+    loops, ops, arg, target = decode(arr)
+    keep = np.zeros(arr.shape, dtype=bool)
+    todo = [0] if n == SECTION_GENES else [0, NAVIGATION_BASE]
+    reached: set[int] = set()
+    while todo:
+        g = todo.pop()
+        if g in reached:
+            continue
+        reached.add(g)
+        leaves = False  # an always-true branch: the gene never ends by its loop count
+        for k in range(INSTRUCTIONS_PER_GENE):
+            s = LOOP_BITS + k * INSTRUCTION_BITS
+            if ops[g, k] == OP_GAIT:
+                keep[g, s : s + 5] = True
+                continue
+            keep[g, s : s + 4] = True
+            test, dest = int(arg[g, k]), branch_destination(g, int(arg[g, k]), int(target[g, k]), n)
+            if not (n == FULL_GENES and g < NAVIGATION_BASE and test == LOW_POWER_TEST):
+                keep[g, s + 4 : s + INSTRUCTION_BITS] = True
+            todo.append(dest)
+            if TEST_MASKS[test] == 0:
+                leaves = True
+                break
+        if not leaves:
+            keep[g, :LOOP_BITS] = True
+            if loops[g] != LOOP_FOREVER:
+                todo.append(next_gene(g))
+    return keep
+
+
+def expressed(bits: np.ndarray) -> np.ndarray:
+    """One chromosome with its unexpressed bits (``expressed_mask``) cleared: two chromosomes
+    with equal expressed bits run the same instructions from every start in every world, so
+    they score the same, bit for bit (a *behaviour*; ``tests/test_codec_expressed.py``)."""
+    arr = check_bits(bits)
+    return np.where(expressed_mask(arr), arr, 0).astype(np.uint8)
+
+
 __all__ = [
     "ChromosomeError",
     "FULL_GENES",
@@ -313,6 +361,8 @@ __all__ = [
     "check_bits",
     "decode",
     "disassemble",
+    "expressed",
+    "expressed_mask",
     "format_chromosome",
     "next_gene",
     "next_pc",

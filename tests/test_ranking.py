@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from evolve.codec import format_chromosome, read_chromosome
+from evolve.codec import expressed_mask, format_chromosome, read_chromosome
 from evolve.envelope import DEFAULT, NONE
 from evolve.evaluation import evaluate
 from evolve.settings import WorldSettings
@@ -21,9 +21,10 @@ RNG = np.random.default_rng(11)
 SIZE = 20
 
 
-def _run_folder(tmp_path: Path) -> tuple[Path, dict[int, np.ndarray]]:
+def _run_folder(tmp_path: Path, clone: bool = False) -> tuple[Path, dict[int, np.ndarray]]:
     """Two populations × generations 0 and 7; fitness = individual index (pop 0) or its
-    reverse (pop 1); individuals 3 and 4 of pop 0 are twins."""
+    reverse (pop 1); pop 0's two fittest are twins, and with ``clone`` its fourth fittest is
+    the fittest with one unexpressed bit flipped (another genome, the same behaviour)."""
     pops = tmp_path / "coverage" / "populations"
     pops.mkdir(parents=True)
     nav = RNG.integers(0, 2, (8, 30), dtype=np.uint8)
@@ -37,6 +38,10 @@ def _run_folder(tmp_path: Path) -> tuple[Path, dict[int, np.ndarray]]:
             fit = np.arange(SIZE, dtype=float) if p == 0 else np.arange(SIZE, dtype=float)[::-1]
             if p == 0:
                 pop[SIZE - 2] = pop[SIZE - 1]  # the two fittest are the same genome
+            if p == 0 and clone:
+                mask = expressed_mask(np.concatenate([pop[SIZE - 1], nav]))[:8]
+                pop[SIZE - 4] = pop[SIZE - 1]
+                pop[SIZE - 4][tuple(np.argwhere(~mask)[0])] ^= 1
             best = pop[int(np.argmax(fit))]
             np.savez(pops / f"pop{p}_gen{gen:04d}.npz", population=pop, fitness=fit, best=best)
             if gen == 7:
@@ -157,6 +162,27 @@ def test_the_measurement_end_to_end_on_a_tiny_case(tmp_path: Path, capsys) -> No
     assert json.loads((out / "ranking.json").read_text()) == doc
     assert measure.main([*argv[:4], "--per-population", "2", *argv[6:]]) == 2
     assert "holds a run made with other settings" in capsys.readouterr().err
+
+
+def test_clones_run_in_physics_once(tmp_path: Path) -> None:
+    """Two genomes of one behaviour (equal expressed bits) share one physics cell: the matrix
+    holds 3 cells per world for 4 genomes, and ``runs_as`` names the clone's stand-in."""
+    import json
+
+    from servobot.robustness import measure
+
+    run, _ = _run_folder(tmp_path / "run", clone=True)
+    out = tmp_path / "rank"
+    argv = ["--run", str(run), "--per-population", "2", "--starts", "1", "--steps", "3",
+            "--draws", "1", "--workers", "1", "--out", str(out)]  # fmt: skip
+    assert measure.main(argv) == 0
+    doc = json.loads((out / "ranking.json").read_text())
+    assert (doc["genomes"], doc["behaviours"]) == (4, 3)
+    assert doc["runs_as"] == {"p0g7r2": "p0g7r0"}
+    for world in measure.WORLDS:
+        assert sorted(p.name for p in (out / "matrix" / "runs" / world).iterdir()) == [
+            "p0g7r0", "p1g7r0", "p1g7r3"]  # fmt: skip
+    assert "4 genomes (3 behaviours" in (out / "ranking.md").read_text()
 
 
 def test_the_bests_alone_and_an_empty_sample(tmp_path: Path, capsys) -> None:

@@ -8,7 +8,9 @@ run's controllers as physics does, and which envelope scales would rank them bes
 Genomes: ``--per-population`` distinct genomes from each final population's top 20 %
 (``ranking.top_genomes``), and with ``--bests`` the best of every saved generation. Each runs
 from the same ``--starts`` seeded coverage starts in the table world and in the physics
-worlds ``shipped`` and ``station-seen`` (``run_matrix`` into ``OUT/matrix``, resumable). The
+worlds ``shipped`` and ``station-seen`` (``run_matrix`` into ``OUT/matrix``, resumable; one
+physics cell per behaviour: genomes equal in their expressed bits, ``evolve.codec.expressed``,
+run alike, and ``ranking.json``'s ``runs_as`` names the genome each clone's runs are). The
 table side is the arm's own world: the exact table for ``none``, else the mean over draws of
 the envelope; beside it the exact table and the *matched* world (the arm's envelope with the
 station block never seen for ``shipped``, always for ``station-seen``: a table world told
@@ -34,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from evolve.codec import format_chromosome
+from evolve.codec import expressed, format_chromosome
 from evolve.envelope import DEFAULT, NONE, TRAINING_DEFAULTS, Envelope, load_envelope
 from evolve.table import load_table
 from infra.errors import InputError
@@ -113,7 +115,9 @@ def tune(genomes, starts, table, phys, seed: int, draws: int, steps: int) -> lis
 
 def _markdown(doc: dict[str, Any]) -> str:
     lines = [f"# Ranking: {doc['run']} (envelope {doc['envelope_name']})", "",
-             f"{doc['genomes']} genomes × {doc['starts']} starts, worlds {', '.join(WORLDS)}", "",
+             f"{doc['genomes']} genomes ({doc['behaviours']} behaviours: genomes equal in their "
+             f"expressed bits run in physics once) × {doc['starts']} starts, worlds "
+             f"{', '.join(WORLDS)}", "",
              "| sample | table world | physics world | Spearman | mean abs Δ | table | physics |",
              "|---|---|---|---|---|---|---|"]  # fmt: skip
     for sample, by in doc["agreement"].items():
@@ -176,29 +180,34 @@ def _measure(a: argparse.Namespace, _command: str) -> int:
     if a.bests:
         samples["generation_bests"] = generation_bests(a.run)
     genomes = [g for s in samples.values() for g in s]
-    files = []
     for g in genomes:
         f = a.out / "genomes" / f"{g.label}.txt"
         f.parent.mkdir(parents=True, exist_ok=True)
         f.write_text(format_chromosome(g.bits) + "\n")
-        files.append(f)
+    # Physics runs once per behaviour: genomes equal in their expressed bits run alike.
+    first: dict[bytes, str] = {}
+    runs_as = [first.setdefault(expressed(g.bits).tobytes(), g.label) for g in genomes]
+    reps = list(first.values())
     settings = RobustnessSettings(
         worlds=WORLDS, starts=a.starts, steps=a.steps, seed=a.seed, table=a.table
     )
     matrix = a.out / "matrix"
-    bar = RunBar("physics", total=len(files) * len(WORLDS) * a.starts)
-    doc = run_matrix(files, matrix, settings, workers=a.workers,
-                     resume=(matrix / "settings.json").exists(),
+    bar = RunBar("physics", total=len(reps) * len(WORLDS) * a.starts)
+    doc = run_matrix([a.out / "genomes" / f"{r}.txt" for r in reps], matrix, settings,
+                     workers=a.workers, resume=(matrix / "settings.json").exists(),
                      on_run=bar, on_skip=bar.advance)  # fmt: skip
     bar.close()
     starts = np.asarray(doc["start_poses"]["coverage"], dtype=float)
     names = [Path(c["file"]).stem for c in doc["table_per_chromosome"]]
-    if names != [g.label for g in genomes]:
+    if names != reps:
         raise RankingError(f"{matrix}: holds other genomes than this sample; use another --out")
-    phys_all = {w: physics_runs(matrix, w, names, a.starts) for w in WORLDS}
+    phys_all = {w: physics_runs(matrix, w, runs_as, a.starts) for w in WORLDS}
     out: dict[str, Any] = {"run": str(a.run), "envelope_name": a.envelope,
                            "envelope": envelope.to_dict(), "genomes": len(genomes),
-                           "starts": a.starts, "agreement": {}}  # fmt: skip
+                           "behaviours": len(reps), "starts": a.starts,
+                           "runs_as": {g.label: r for g, r in zip(genomes, runs_as, strict=True)
+                                       if g.label != r},
+                           "agreement": {}}  # fmt: skip
     offset = 0
     for sample, gs in samples.items():
         rows = slice(offset, offset + len(gs))
