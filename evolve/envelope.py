@@ -125,6 +125,12 @@ class Envelope:
     body against the block (dimensionless, ≥ 0): a slid move's advance along the face is
     shortened by this × its component into the block. 0.5 fits gaits walked against the
     MuJoCo block best (docs/envelope.md)."""
+    station_margin: float = 0.0
+    """[chosen] How far past the robot's disc (``ROBOT_RADIUS``; a colony's ``disc_radius``)
+    the block stops a move, units (≥ 0): the block stops a centre closer than radius + this.
+    The MuJoCo robot's legs reach past its bumper: walked cycle by cycle in front of the
+    block, its ends and turns match a block that stops at 18 units (margin 3) better than at
+    15 (docs/envelope.md, ``python -m servobot.robustness.block_contact --margins``)."""
 
     warmup_fraction: float = 0.0
     """[chosen] Incremental evolution: the first ``round(warmup_fraction × generations)``
@@ -187,6 +193,13 @@ class Envelope:
         if isinstance(f, bool) or not isinstance(f, int | float) or not 0.0 <= f < math.inf:
             raise EnvelopeError(f"station_friction must be a finite number ≥ 0, got {f!r}")
         object.__setattr__(self, "station_friction", float(f))
+        m = self.station_margin
+        if isinstance(m, bool) or not isinstance(m, int | float) or not 0.0 <= m < math.inf:
+            raise EnvelopeError(f"station_margin must be a finite number ≥ 0 (units), got {m!r}")
+        object.__setattr__(self, "station_margin", float(m))
+        if m > 0.0 and self.station_stops is False:
+            raise EnvelopeError(f"station_margin {m:g} needs station_stops true or \"always\" "
+                                f"(it is false)")  # fmt: skip
         if self.station_blocking not in BLOCKING_RULES:
             raise EnvelopeError(f"station_blocking must be one of {', '.join(BLOCKING_RULES)}, "
                                 f"got {self.station_blocking!r}")  # fmt: skip
@@ -260,7 +273,7 @@ TRAINING_DEFAULTS = {
 """How training samples an envelope, at their defaults."""
 LATER_DEFAULTS = {
     **TRAINING_DEFAULTS, "unseen_stops_p": 0.0, "station_blocking": "cancel",
-    "station_friction": 0.5, "pace_spread": 0.0, "turn_spread": 0.0,
+    "station_friction": 0.5, "pace_spread": 0.0, "turn_spread": 0.0, "station_margin": 0.0,
 }  # fmt: skip
 """Fields added after the first envelopes were recorded, at their defaults (left out of
 ``to_dict``)."""

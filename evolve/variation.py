@@ -116,7 +116,8 @@ class Variation:
     block: tuple[float, float, float, float]
     """The station block (x0, y0, x1, y1), units."""
     radius: float
-    """Robot radius that a block stops (``station_stops``), units."""
+    """Distance from the block within which it stops a robot's centre (``station_stops``):
+    the robot radius + ``Envelope.station_margin``, units."""
     object_range: float
     """The world's activation distance, units: the centre of the reach draws."""
     station_trial: int
@@ -140,8 +141,9 @@ class Variation:
         sigma = envelope_sigma(envelope, table)
         words = _check_key(key)
         station_key, offset = envelope.station_stratum(words)
-        return cls(envelope, values, sigma, fold(words), station_block(world), float(radius),
-                   float(world.object_range), fold(station_key), offset)  # fmt: skip
+        return cls(envelope, values, sigma, fold(words), station_block(world),
+                   float(radius) + envelope.station_margin, float(world.object_range),
+                   fold(station_key), offset)  # fmt: skip
 
     def run_key(self, start: int, robot: int, trial: int | None = None) -> int:
         """Robot ``robot``'s run key at start index ``start`` (of ``trial``; default the

@@ -5,10 +5,12 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
 from evolve.geometry import wrap180
 from evolve.table import PAPER_TABLE
+from evolve.world import TableWorld
 from servo_mj.world.physics_world import PhysicsWorld
 from servobot.robustness import block_contact
 from servobot.robustness.block_contact import contact_errors, report, rules
@@ -34,15 +36,41 @@ def test_errors_are_measured_against_physics_on_the_cases_the_block_stops():
     assert doc["sets"]["one"]["cases"] == 1 and "## one: 1 cases the block stops" in md
 
 
+def test_cycle_errors_start_each_cycle_from_physics_pose():
+    """Cycle by cycle, a rule's error is measured from physics' pose before the cycle: two
+    cycles of gait 0 far from the block, where no rule stops, give the open table's error of
+    each physics cycle."""
+    pose = (300.0, 250.0, 90.0)
+    rows = block_contact.cycle_errors(PAPER_TABLE, [pose], [0], block_contact.margin_rules([3.0]),
+                                      2)  # fmt: skip
+    phys = PhysicsWorld(*pose)
+    want = []
+    for _ in range(2):
+        start = phys.pose()
+        phys.step(0)
+        tab = TableWorld(PAPER_TABLE, *start)
+        tab.step(0)
+        (x, y, h), (px, py, ph) = tab.pose(), phys.pose()
+        want.append((math.hypot(x - px, y - py), abs(wrap180(h - ph))))
+    for r in rows:
+        np.testing.assert_allclose(r.errors, want, rtol=0, atol=1e-9)
+
+
 def test_the_command_writes_its_report_and_refuses_bad_settings(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(block_contact, "POSE_SETS", {"tiny": ([(458.0, 262.0, 45.0)], (0,))})
-    args = ["--frictions", "0,0.5", "--cycles", "2", "--out", str(tmp_path)]
+    args = ["--frictions", "0,0.5", "--cycles", "2", "--margins", "0,3", "--out", str(tmp_path)]
     assert block_contact.main(args) == 0
     doc = json.loads((tmp_path / "block_contact.json").read_text())
     assert set(doc["sets"]["tiny"]["rules"]) == {"cancel", "slide 0", "slide 0.5"}
+    by_cycle = doc["cycle_by_cycle"]["tiny"]
+    assert by_cycle["cases"] == 2  # every cycle of the one case
+    assert set(by_cycle["rules"]) == {"cancel", "slide 0.5, margin 0", "slide 0.5, margin 3"}
     assert (tmp_path / "block_contact.png").stat().st_size > 0
-    for bad in (["--frictions", "half"], ["--frictions", "-1"], ["--cycles", "0"]):
+    bad_args = (["--frictions", "half"], ["--frictions", "-1"], ["--cycles", "0"],
+                ["--margins", "-2"])  # fmt: skip
+    for bad in bad_args:
         with pytest.raises(SystemExit) as err:
             block_contact.main([*bad, "--out", str(tmp_path)])
         assert err.value.code == 2
-    assert "station_friction must be" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "station_friction must be" in err and "--margins: station_margin must be" in err

@@ -73,9 +73,11 @@ SLIDING = dataclasses.replace(
 """As ``HALF_IN_THE_WAY``, a move the block stops sliding along it, pace and turn drawn."""
 EVERY_ENVELOPE = pytest.mark.parametrize(
     "envelope",
-    [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY, SLIDING],
-    ids=["everything", "loud", "in the way", "half in the way", "sliding, paced"],
-)
+    [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY, SLIDING,
+     dataclasses.replace(SLIDING, station_margin=3.0)],
+    ids=["everything", "loud", "in the way", "half in the way", "sliding, paced",
+         "sliding, margin 3"],
+)  # fmt: skip
 """The kernel = interpreter cases: every aspect, loud scales, the block's stop rules."""
 KEY = (7, 3)
 SCATTER_ONLY = Envelope(scatter_scale=1.0)
@@ -531,6 +533,29 @@ def test_a_move_the_block_stops_slides_along_its_face_and_round_its_corner():
     assert tuple(ev.final_pose[0, 0]) == r.final_pose and ev.steps[0, 0] == 3
 
 
+def test_the_block_stops_a_centre_within_radius_plus_margin():
+    """``station_margin`` 3: the block stops a centre closer than 15 + 3 units. Head-on (east),
+    gait 0's open move ending 16.5 units from the west face is stopped with the margin and not
+    without; one ending 18.5 units away is stopped by neither. The kernel agrees."""
+    x0 = station_block(WORLD)[0]
+    margin = dataclasses.replace(STOPS_ONLY, station_margin=3.0)
+    walk = chrom(gene("00", G(0), G(0), G(0), G(0)))
+    for gap, stopped in ((16.5, True), (18.5, False)):
+        probe = TableWorld(PAPER_TABLE, 400.0, 250.0, 90.0)
+        probe.step(0)
+        pose = (400.0 + (x0 - gap) - probe.pose()[0], 250.0, 90.0)  # the open end `gap` away
+        open_world = TableWorld(PAPER_TABLE, *pose)
+        open_world.step(0)
+        assert x0 - open_world.pose()[0] == pytest.approx(gap, abs=1e-9)
+        assert TableWorld(PAPER_TABLE, *pose, envelope=STOPS_ONLY).step(0) is False
+        world = TableWorld(PAPER_TABLE, *pose, envelope=margin)
+        assert world.step(0) is stopped
+        assert world.pose() == (pose if stopped else open_world.pose())
+        ev = evaluate(walk[None], np.array([pose]), table=PAPER_TABLE, mode="coverage",
+                      max_steps=1, envelope=margin)  # fmt: skip
+        assert tuple(ev.final_pose[0, 0]) == world.pose()
+
+
 def test_a_slid_move_that_another_robot_blocks_is_cancelled():
     """In a colony the end of a move slid along the block must also be clear of the others."""
     pose = (460.0, 250.0, 45.0)
@@ -581,6 +606,8 @@ def test_named_and_file_envelopes_load(tmp_path):
         ({"station_stops": True, "station_blocking": "push"}, "station_blocking must be one of"),
         ({"station_blocking": "slide"}, "station_blocking 'slide' needs station_stops"),
         ({"station_stops": True, "station_friction": -0.5}, "station_friction must be a finite"),
+        ({"station_stops": True, "station_margin": -1}, "station_margin must be a finite"),
+        ({"station_margin": 3}, "station_margin 3 needs station_stops"),
         ({"pace_spread": 1.0}, r"pace_spread must be in \[0, 1\)"),
         ({"turn_spread": -0.1}, "turn_spread must be ≥ 0"),
         ({"draws_per_start": 1.5}, "draws_per_start must be an integer ≥ 1"),

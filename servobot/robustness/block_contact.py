@@ -12,6 +12,12 @@ and physics' final positions (units) and between their headings (degrees). Two p
 ``tuning`` (on which the friction was chosen) and ``held-out`` (other poses, every gait).
 Writes ``OUT/block_contact.json``, ``.md`` and ``.png`` (mean position error against the
 friction, both sets, ``cancel`` as a line).
+
+``--margins 0,1,2,3,4,5`` adds a cycle-by-cycle comparison (``cycle_errors``): before each
+physics cycle of every case, each rule (``cancel``, and ``slide`` at friction 0.5 with each
+``Envelope.station_margin``) walks that one cycle in the table world from physics' pose; its
+errors are the distance to physics' end and the difference of the turns. Every cycle counts,
+stopped or not, so a block that stops at a larger distance is judged on the near misses too.
 """
 
 from __future__ import annotations
@@ -48,6 +54,8 @@ POSE_SETS: dict[str, tuple[list[Pose], tuple[int, ...]]] = {
 the gaits walked from each."""
 FRICTIONS = (0.0, 0.25, 0.4, 0.5, 0.6, 0.75, 1.0)
 """``station_friction`` values swept by default."""
+MARGIN_FRICTION = 0.5
+"""``station_friction`` of the slide rules compared at each ``--margins`` value."""
 
 
 @dataclass(frozen=True)
@@ -104,14 +112,54 @@ def contact_errors(
             for name, e in errors.items()]  # fmt: skip
 
 
-def report(results: dict[str, list[ContactErrors]], cycles: int) -> tuple[dict, str]:
+def margin_rules(margins: Sequence[float]) -> dict[str, Envelope]:
+    """``cancel`` and ``slide`` at ``MARGIN_FRICTION`` with each ``station_margin``, the block
+    always in the way and unseen."""
+    out = {"cancel": Envelope(station_stops=STOPS_ALWAYS)}
+    for m in margins:
+        out[f"slide {MARGIN_FRICTION:g}, margin {m:g}"] = Envelope(
+            station_stops=STOPS_ALWAYS, station_blocking="slide",
+            station_friction=MARGIN_FRICTION, station_margin=float(m),
+        )  # fmt: skip
+    return out
+
+
+def cycle_errors(
+    table: np.ndarray, poses: Sequence[Pose], gaits: Sequence[int], envelopes: dict[str, Envelope],
+    cycles: int = 3,
+) -> list[ContactErrors]:  # fmt: skip
+    """Each rule's errors against physics cycle by cycle: before each of a case's ``cycles``
+    physics cycles, the rule walks the same cycle in the table world from physics' pose; the
+    errors are the distance between the two ends (units) and between the two turns (deg)."""
+    from servo_mj.world.physics_world import PhysicsWorld  # physics only where it is run
+
+    errors: dict[str, list[tuple[float, float]]] = {name: [] for name in envelopes}
+    for pose, gait in itertools.product(poses, gaits):
+        phys = PhysicsWorld(*pose)
+        for _ in range(cycles):
+            start = phys.pose()
+            phys.step(gait)
+            px, py, ph = phys.pose()
+            for name, env in envelopes.items():
+                tab = TableWorld(table, *start, envelope=env)
+                tab.step(gait)
+                x, y, h = tab.pose()
+                errors[name].append((float(np.hypot(x - px, y - py)), abs(wrap180(h - ph))))
+    return [ContactErrors(name, np.array(e, dtype=float).reshape(-1, 2))
+            for name, e in errors.items()]  # fmt: skip
+
+
+def report(
+    results: dict[str, list[ContactErrors]], cycles: int, *,
+    title: str = "The station block's rule against physics", counted: str = "cases the block stops",
+) -> tuple[dict, str]:  # fmt: skip
     """(JSON document, markdown) of each pose set's per-rule summaries."""
     doc = {"cycles": cycles, "sets": {}}
-    lines = [f"# The station block's rule against physics ({cycles} cycles per case)", ""]
+    lines = [f"# {title} ({cycles} cycles per case)", ""]
     for name, rows in results.items():
         n = len(rows[0].errors)
         doc["sets"][name] = {"cases": n, "rules": {r.rule: r.summary() for r in rows}}
-        lines += [f"## {name}: {n} cases the block stops", "",
+        lines += [f"## {name}: {n} {counted}", "",
                   "| rule | position error, mean / median (units) | heading error (°) |",
                   "|---|---|---|"]  # fmt: skip
         for r in rows:
@@ -151,6 +199,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--table", help="calibrated gait table (default: the paper's)")
     ap.add_argument("--frictions", default=",".join(f"{f:g}" for f in FRICTIONS))
     ap.add_argument("--cycles", type=int, default=3)
+    ap.add_argument("--margins", help="station_margin values (units) compared cycle by cycle, "
+                    "e.g. 0,1,2,3,4,5 (default: none)")  # fmt: skip
     ap.add_argument("--out", type=Path, default=Path("runs/block_contact"))
     args = ap.parse_args(argv)
     try:
@@ -158,12 +208,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         envelopes = rules(frictions)
     except ValueError as exc:
         ap.error(f"--frictions: {exc}")
+    margins = None
+    if args.margins is not None:
+        try:
+            margins = margin_rules([float(m) for m in args.margins.split(",")])
+        except ValueError as exc:
+            ap.error(f"--margins: {exc}")
     if args.cycles < 1:
         ap.error(f"--cycles must be ≥ 1, got {args.cycles}")
     table = PAPER_TABLE if args.table is None else load_table(args.table).values
     results = {name: contact_errors(table, poses, gaits, envelopes, args.cycles)
                for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
     doc, md = report(results, args.cycles)
+    if margins is not None:
+        by_cycle = {name: cycle_errors(table, poses, gaits, margins, args.cycles)
+                    for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
+        doc_c, md_c = report(by_cycle, args.cycles, counted="cycles",
+                             title="Cycle by cycle, every cycle: the block's margin")  # fmt: skip
+        doc["cycle_by_cycle"] = doc_c["sets"]
+        md += "\n" + md_c
     write_report(args.out, "block_contact", doc, md)
     plot(results, frictions, args.out / "block_contact.png")
     return 0
