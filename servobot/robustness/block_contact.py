@@ -2,7 +2,8 @@
 ``Envelope.station_blocking`` ``cancel`` against ``slide`` at a sweep of ``station_friction``.
 
     python -m servobot.robustness.block_contact [--table runs/cal/gait_table.json] \\
-        [--frictions 0,0.25,0.4,0.5,0.6,0.75,1] [--cycles 3] [--out runs/block_contact]
+        [--frictions 0,0.25,0.4,0.5,0.6,0.75,1] [--cycles 3] [--margins 0,1,2,3,4,5] \\
+        [--out runs/block_contact]
 
 From each pose of a set in front of the block, the robot walks ``--cycles`` cycles of one gait
 in the physics world ``shipped`` (whose low block stops it) and in the table world with the
