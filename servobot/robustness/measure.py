@@ -39,9 +39,7 @@ import numpy as np
 from evolve.codec import expressed, format_chromosome
 from evolve.envelope import DEFAULT, NONE, TRAINING_DEFAULTS, Envelope, load_envelope
 from evolve.table import load_table
-from infra.errors import InputError
 from infra.io import write_report
-from servobot.cli.runner import run_main
 from servobot.progress import RunBar, progress_bar
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
 from servobot.robustness.ranking import (
@@ -147,7 +145,7 @@ def _markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _parser() -> argparse.ArgumentParser:
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m servobot.robustness.measure",
         description=__doc__,
@@ -166,16 +164,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--tune", action="store_true")
     p.add_argument("--workers", type=int, default=None)
     p.add_argument("--out", type=Path, required=True)
-    return p
-
-
-def _measure(a: argparse.Namespace, _command: str) -> int:
-    """The measurement of the module docstring for parsed arguments ``a``."""
+    a = p.parse_args(argv)
     envelope, table = load_envelope(a.envelope), load_table(a.table)
     if a.per_population < 0 or (a.per_population == 0 and not a.bests):
-        raise InputError("--per-population must be ≥ 1, or 0 with --bests (the bests alone)")
+        p.error("--per-population must be ≥ 1, or 0 with --bests (the bests alone)")
     if a.tune and a.per_population == 0:
-        raise InputError("--tune scores the top-20 % sample: give --per-population ≥ 1")
+        p.error("--tune scores the top-20 % sample: give --per-population ≥ 1")
     samples = {"top20": top_genomes(a.run, a.per_population)} if a.per_population else {}
     if a.bests:
         samples["generation_bests"] = generation_bests(a.run)
@@ -243,14 +237,6 @@ def _measure(a: argparse.Namespace, _command: str) -> int:
         )
     write_report(a.out, "ranking", out, _markdown(out))
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Ctrl-C or SIGTERM stops the pool's workers and keeps the finished physics cells; the
-    same command resumes."""
-    p = _parser()
-    return run_main(p.prog, p, argv, _measure,
-                    lambda a: f"the finished physics cells under {a.out / 'matrix'}")  # fmt: skip
 
 
 if __name__ == "__main__":
