@@ -316,10 +316,10 @@ def expressed_mask(bits: np.ndarray) -> np.ndarray:
                 keep[g, s : s + 5] = True
                 continue
             keep[g, s : s + 4] = True
-            test, dest = int(arg[g, k]), branch_destination(g, int(arg[g, k]), int(target[g, k]), n)
+            test = int(arg[g, k])
             if not (n == FULL_GENES and g < NAVIGATION_BASE and test == LOW_POWER_TEST):
                 keep[g, s + 4 : s + INSTRUCTION_BITS] = True
-            todo.append(dest)
+            todo.append(branch_destination(g, test, int(target[g, k]), n))
             if TEST_MASKS[test] == 0:
                 leaves = True
                 break

@@ -162,7 +162,7 @@ class Envelope:
 
     def __post_init__(self) -> None:
         for name in ("scatter_scale", "bias_scale", "station_seen_p", "reach_units",
-                     "pace_spread", "turn_spread", "warmup_fraction"):
+                     "pace_spread", "turn_spread", "warmup_fraction", "station_margin"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise EnvelopeError(f"{name} must be a finite number, got {v!r}")
@@ -195,13 +195,9 @@ class Envelope:
         if isinstance(f, bool) or not isinstance(f, int | float) or not 0.0 <= f < math.inf:
             raise EnvelopeError(f"station_friction must be a finite number ≥ 0, got {f!r}")
         object.__setattr__(self, "station_friction", float(f))
-        m = self.station_margin
-        if isinstance(m, bool) or not isinstance(m, int | float) or not 0.0 <= m < math.inf:
-            raise EnvelopeError(f"station_margin must be a finite number ≥ 0 (units), got {m!r}")
-        object.__setattr__(self, "station_margin", float(m))
-        if m > 0.0 and self.station_stops is False:
-            raise EnvelopeError(f"station_margin {m:g} needs station_stops true or \"always\" "
-                                f"(it is false)")  # fmt: skip
+        if self.station_margin > 0.0 and self.station_stops is False:
+            raise EnvelopeError(f"station_margin {self.station_margin:g} needs station_stops true "
+                                f"or \"always\" (it is false)")  # fmt: skip
         if self.station_blocking not in BLOCKING_RULES:
             raise EnvelopeError(f"station_blocking must be one of {', '.join(BLOCKING_RULES)}, "
                                 f"got {self.station_blocking!r}")  # fmt: skip

@@ -85,30 +85,51 @@ def rules(frictions: Sequence[float]) -> dict[str, Envelope]:
     return out
 
 
-def contact_errors(
-    table: np.ndarray, poses: Sequence[Pose], gaits: Sequence[int], envelopes: dict[str, Envelope],
-    cycles: int = 3,
-) -> list[ContactErrors]:  # fmt: skip
-    """Each rule's errors against physics over the cases (pose × gait) whose block stops a
-    move under the first rule of ``envelopes`` (``cancel``)."""
+Walks = dict[tuple[Pose, int], list[Pose]]
+"""Physics' poses of each case (start pose, gait): before each cycle, then after the last."""
+
+
+def walk_physics(poses: Sequence[Pose], gaits: Sequence[int], cycles: int) -> Walks:
+    """Every case (pose × gait) walked ``cycles`` cycles in the physics world ``shipped``."""
     from servo_mj.world.physics_world import PhysicsWorld  # physics only where it is run
 
+    walks: Walks = {}
+    for pose, gait in itertools.product(poses, gaits):
+        phys = PhysicsWorld(*pose)
+        track = [phys.pose()]
+        for _ in range(cycles):
+            phys.step(gait)
+            track.append(phys.pose())
+        walks[pose, gait] = track
+    return walks
+
+
+def _errors(tab: TableWorld, phys: Pose) -> tuple[float, float]:
+    """Distance (units) and heading difference (deg) between a table pose and physics'."""
+    (x, y, h), (px, py, ph) = tab.pose(), phys
+    return float(np.hypot(x - px, y - py)), abs(wrap180(h - ph))
+
+
+def contact_errors(
+    table: np.ndarray, poses: Sequence[Pose], gaits: Sequence[int], envelopes: dict[str, Envelope],
+    cycles: int = 3, walks: Walks | None = None,
+) -> list[ContactErrors]:  # fmt: skip
+    """Each rule's errors against physics over the cases (pose × gait) whose block stops a
+    move under the first rule of ``envelopes`` (``cancel``); ``walks``: physics' walks of
+    these cases (``walk_physics``, walked here when None)."""
+    walks = walk_physics(poses, gaits, cycles) if walks is None else walks
     errors: dict[str, list[tuple[float, float]]] = {name: [] for name in envelopes}
     first = next(iter(envelopes))
     for pose, gait in itertools.product(poses, gaits):
-        phys = PhysicsWorld(*pose)
         tabs = {name: TableWorld(table, *pose, envelope=env) for name, env in envelopes.items()}
         stopped = False
         for _ in range(cycles):
-            phys.step(gait)
             for name, tab in tabs.items():
                 stopped |= tab.step(gait) and name == first
         if not stopped:
             continue
-        px, py, ph = phys.pose()
         for name, tab in tabs.items():
-            x, y, h = tab.pose()
-            errors[name].append((float(np.hypot(x - px, y - py)), abs(wrap180(h - ph))))
+            errors[name].append(_errors(tab, walks[pose, gait][-1]))
     return [ContactErrors(name, np.array(e, dtype=float).reshape(-1, 2))
             for name, e in errors.items()]  # fmt: skip
 
@@ -127,25 +148,21 @@ def margin_rules(margins: Sequence[float]) -> dict[str, Envelope]:
 
 def cycle_errors(
     table: np.ndarray, poses: Sequence[Pose], gaits: Sequence[int], envelopes: dict[str, Envelope],
-    cycles: int = 3,
+    cycles: int = 3, walks: Walks | None = None,
 ) -> list[ContactErrors]:  # fmt: skip
     """Each rule's errors against physics cycle by cycle: before each of a case's ``cycles``
     physics cycles, the rule walks the same cycle in the table world from physics' pose; the
-    errors are the distance between the two ends (units) and between the two turns (deg)."""
-    from servo_mj.world.physics_world import PhysicsWorld  # physics only where it is run
-
+    errors are the distance between the two ends (units) and between the two turns (deg).
+    ``walks`` as for ``contact_errors``."""
+    walks = walk_physics(poses, gaits, cycles) if walks is None else walks
     errors: dict[str, list[tuple[float, float]]] = {name: [] for name in envelopes}
     for pose, gait in itertools.product(poses, gaits):
-        phys = PhysicsWorld(*pose)
-        for _ in range(cycles):
-            start = phys.pose()
-            phys.step(gait)
-            px, py, ph = phys.pose()
+        track = walks[pose, gait]
+        for start, end in itertools.pairwise(track):
             for name, env in envelopes.items():
                 tab = TableWorld(table, *start, envelope=env)
                 tab.step(gait)
-                x, y, h = tab.pose()
-                errors[name].append((float(np.hypot(x - px, y - py)), abs(wrap180(h - ph))))
+                errors[name].append(_errors(tab, end))
     return [ContactErrors(name, np.array(e, dtype=float).reshape(-1, 2))
             for name, e in errors.items()]  # fmt: skip
 
@@ -218,11 +235,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.cycles < 1:
         ap.error(f"--cycles must be ≥ 1, got {args.cycles}")
     table = PAPER_TABLE if args.table is None else load_table(args.table).values
-    results = {name: contact_errors(table, poses, gaits, envelopes, args.cycles)
+    walks = {name: walk_physics(poses, gaits, args.cycles)
+             for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
+    results = {name: contact_errors(table, poses, gaits, envelopes, args.cycles, walks[name])
                for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
     doc, md = report(results, args.cycles)
     if margins is not None:
-        by_cycle = {name: cycle_errors(table, poses, gaits, margins, args.cycles)
+        by_cycle = {name: cycle_errors(table, poses, gaits, margins, args.cycles, walks[name])
                     for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
         doc_c, md_c = report(by_cycle, args.cycles, counted="cycles",
                              title="Cycle by cycle, every cycle: the block's margin")  # fmt: skip
