@@ -18,10 +18,10 @@ from test_stages import _files
 from evolve.codec import parse_chromosome
 from evolve.settings import WorldSettings
 from evolve.table import PAPER_TABLE
+from infra.command import Interrupted, run_command
 from infra.io import OutputError
 from servo_mj.world import physics_world
 from servobot.cli import main as servobot
-from servobot.cli.runner import Interrupted, run_command
 from servobot.recording import Recording
 from servobot.validation import lone as validation
 
@@ -125,7 +125,7 @@ def test_an_interrupt_escaping_exec_of_source_does_not_kill_the_process_at_exit(
     so) and kills itself with SIGINT at exit even though the command handled it: exit -2."""
     (tmp_path / "interrupted_in_exec.py").write_text(
         "import sys\n"
-        "from servobot.cli.runner import Interrupted, run_command\n"
+        "from infra.command import Interrupted, run_command\n"
         "body = lambda: exec('import signal; signal.raise_signal(signal.SIGINT)')\n"
         "sys.exit(run_command('servobot x', body, lambda: Interrupted('nothing', 'again')))\n"
     )

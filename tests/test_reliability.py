@@ -20,6 +20,7 @@ from evolve.checkpoint import write_npz
 from evolve.population import stage_seeds
 from evolve.table import PAPER_TABLE, GaitTableError, table_from_json, table_to_json
 from infra.bounds import BoundsError, Limits, Need, check_int, check_need, check_number
+from infra.command import Interrupted, Terminated, command_line, run_command
 from infra.errors import InputError
 from infra.executors import process_pool, spawning
 from infra.io import (
@@ -37,7 +38,6 @@ from infra.io import (
 )
 from infra.rundir import RECORD_FILE, RunDirError, folder_lock, run_folder
 from servo_mj.robot.gaits import GaitLibrary, GaitParamsError
-from servobot.cli.runner import Interrupted, Terminated, command_line, run_command
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -22,12 +22,13 @@ from calibration.fit import FitSettings
 from calibration.measure import DEFAULTS, CalibrationSettings
 from calibration.report import format_energy, format_table
 from infra.bounds import check_int, check_number
+from infra.command import EXIT_FAILED
 from infra.executors import BatchError
 from infra.io import check_output_file
 from servo_mj.robot.bot import PhysicsError
 from servo_mj.robot.gaits import MAX_TARGET_RAD, PARAMS_JSON, GaitLibrary
 from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
-from servobot.cli.runner import EXIT_FAILED, run_main
+from servobot.cli.runner import run_main
 
 PROG = "servobot calibrate"
 MEASURE_OPTIONS = (

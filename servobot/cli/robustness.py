@@ -17,8 +17,8 @@ import sys
 from pathlib import Path
 
 from infra.bounds import check_int
+from infra.command import EXIT_FAILED, Interrupted, command_line, run_command
 from servobot.cli.options import add_executor_option, executor_from_args
-from servobot.cli.runner import EXIT_FAILED, Interrupted, command_line, run_command
 from servobot.progress import RunBar
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
 from servobot.robustness.report import markdown

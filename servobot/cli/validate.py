@@ -36,12 +36,13 @@ from evolve.handoff import read_poses
 from evolve.settings import BLOCKING_RULES, ColonySettings, WorldSettings
 from evolve.starts import colony_starts, coverage_starts
 from infra.bounds import check_int, check_need, check_nonnegative, check_number
+from infra.command import EXIT_FAILED
 from infra.errors import InputError
 from servo_mj.robot.gaits import MAX_TARGET_RAD
 from servo_mj.robot.settings import PhysicsSettings
 from servo_mj.world.arena import ArenaSettings
 from servobot.cli.options import add_executor_option, add_model_option, executor_from_args
-from servobot.cli.runner import EXIT_FAILED, run_main
+from servobot.cli.runner import run_main
 from servobot.progress import RunBar
 from servobot.validation.colony import check_colony_starts, validate_colony
 from servobot.validation.colony_report import colony_run_rows, colony_summary_lines

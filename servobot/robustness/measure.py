@@ -39,6 +39,7 @@ import numpy as np
 from evolve.codec import expressed, format_chromosome
 from evolve.envelope import DEFAULT, NONE, TRAINING_DEFAULTS, Envelope, load_envelope
 from evolve.table import load_table
+from infra.command import Interrupted, command_line, run_command
 from infra.io import write_report
 from servobot.progress import RunBar, progress_bar
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
@@ -145,9 +146,15 @@ def _markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+PROG = "python -m servobot.robustness.measure"
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run the measurement; returns the exit code (0 done, 2 bad input, 130 Ctrl-C, 143
+    SIGTERM: the physics runs finished so far are kept, the same command resumes)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
     p = argparse.ArgumentParser(
-        prog="python -m servobot.robustness.measure",
+        prog=PROG,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -165,6 +172,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=None)
     p.add_argument("--out", type=Path, required=True)
     a = p.parse_args(argv)
+
+    def interrupted() -> Interrupted:
+        return Interrupted(
+            f"the finished physics runs in {a.out / 'matrix'}", command_line(PROG, argv)
+        )
+
+    return run_command(PROG, lambda: _measure(p, a), interrupted)
+
+
+def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     envelope, table = load_envelope(a.envelope), load_table(a.table)
     if a.per_population < 0 or (a.per_population == 0 and not a.bests):
         p.error("--per-population must be ≥ 1, or 0 with --bests (the bests alone)")
