@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rerun as rr
+from conftest import sigint_as_in_a_terminal
 from test_stages import _files
 
 from evolve.codec import parse_chromosome
@@ -35,6 +36,7 @@ def _signal_when(args: list[str], ready: str, sig: int, cwd: Path) -> tuple[int,
     proc = subprocess.Popen(
         [sys.executable, "-m", "servobot", *args],
         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        preexec_fn=sigint_as_in_a_terminal,
     )  # fmt: skip
     t0 = time.monotonic()
     while not list(cwd.glob(ready)):
@@ -64,15 +66,6 @@ def test_ctrl_c_keeps_checkpoints_and_resume_is_bit_identical(tmp_path, capsys):
     assert servobot(["evolve", *args, "--out", str(cut), "--resume"]) == 0
     assert servobot(["evolve", *args, "--out", str(tmp_path / "ref")]) == 0
     assert _files(cut) == _files(tmp_path / "ref")
-
-
-@pytest.fixture
-def ctrl_c_raises():
-    """SIGINT raises KeyboardInterrupt in this process while the test runs (as in a terminal,
-    even where the suite runs as a background job that ignores it)."""
-    old = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, old)
 
 
 NOTE = lambda: Interrupted("nothing", "servobot x --again")  # noqa: E731
@@ -132,7 +125,7 @@ def test_an_interrupt_escaping_exec_of_source_does_not_kill_the_process_at_exit(
     proc = subprocess.run(
         [sys.executable, "-m", "interrupted_in_exec"], cwd=tmp_path, capture_output=True,
         text=True, env={**os.environ, "PYTHONPATH": str(ROOT)},
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=sigint_as_in_a_terminal,
     )  # fmt: skip
     assert proc.returncode == 130, proc.stderr
     assert "servobot x: interrupted; kept: nothing; resume with: again" in proc.stderr

@@ -209,6 +209,29 @@ def test_the_bests_alone_and_an_empty_sample(tmp_path: Path, capsys) -> None:
     assert names == ["p0g0best", "p0g7best", "p1g0best", "p1g7best"]
 
 
+def test_the_executor_option(tmp_path: Path, capsys) -> None:
+    """``--executor serial`` gives the pool's numbers; an executor that names nothing and a
+    worker count below 1 exit 2 naming the option, before any physics."""
+    import json
+
+    from servobot.robustness import measure
+
+    run, _ = _run_folder(tmp_path / "run")
+    argv = ["--run", str(run), "--per-population", "1", "--starts", "1", "--steps", "2",
+            "--draws", "1"]  # fmt: skip
+    assert measure.main([*argv, "--executor", "serial", "--out", str(tmp_path / "a")]) == 0
+    assert measure.main([*argv, "--workers", "2", "--out", str(tmp_path / "b")]) == 0
+    doc_a, doc_b = (json.loads((tmp_path / d / "ranking.json").read_text()) for d in "ab")
+    assert doc_a["agreement"] == doc_b["agreement"]
+    capsys.readouterr()
+    assert measure.main([*argv, "--executor", "cluster", "--out", str(tmp_path / "c")]) == 2
+    assert "cluster" in capsys.readouterr().err
+    assert not (tmp_path / "c").exists()  # refused before anything is written
+    with pytest.raises(SystemExit) as e:
+        measure.main([*argv, "--workers", "0", "--out", str(tmp_path / "d")])
+    assert e.value.code == 2 and "--workers" in capsys.readouterr().err
+
+
 def test_agreement_by_population_by_hand():
     """Population 0 is ranked backwards, 1 and 2 exactly; their means in the same order."""
     table = np.array([1, 2, 3, 10, 20, 30, 5, 6, 7], dtype=float)[:, None]

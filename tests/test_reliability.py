@@ -108,7 +108,7 @@ def test_read_json_can_raise_the_callers_error(tmp_path):
 # --------------------------------------------------------------------------- writing
 
 
-def test_ctrl_c_during_a_write_is_held_until_the_file_is_whole(tmp_path):
+def test_ctrl_c_during_a_write_is_held_until_the_file_is_whole(tmp_path, ctrl_c_raises):
     path = tmp_path / "result.txt"
 
     def write(tmp: Path) -> None:
@@ -123,7 +123,7 @@ def test_ctrl_c_during_a_write_is_held_until_the_file_is_whole(tmp_path):
     assert _hidden(tmp_path) == []
 
 
-def test_ctrl_c_during_a_checkpoint_is_not_a_zipfile_error(tmp_path, monkeypatch):
+def test_ctrl_c_during_a_checkpoint_is_not_a_zipfile_error(tmp_path, monkeypatch, ctrl_c_raises):
     path = tmp_path / "pop0.npz"
     real = np.savez_compressed
 

@@ -3,7 +3,7 @@ run's controllers as physics does, and which envelope scales would rank them bes
 
     python -m servobot.robustness.measure --run runs/none_s0 --envelope none \\
         --table runs/cal/gait_table.json --per-population 5 --starts 4 --out runs/rank_none_s0 \\
-        [--bests] [--tune] [--workers 2]
+        [--bests] [--tune] [--workers 2] [--executor ray:ADDRESS]
 
 Genomes: ``--per-population`` distinct genomes from each final population's top 20 %
 (``ranking.top_genomes``), and with ``--bests`` the best of every saved generation. Each runs
@@ -40,6 +40,7 @@ from evolve.codec import expressed, format_chromosome
 from evolve.envelope import DEFAULT, NONE, TRAINING_DEFAULTS, Envelope, load_envelope
 from evolve.table import load_table
 from infra.command import Interrupted, command_line, run_command
+from infra.executors import RayExecutor, make_executor
 from infra.io import write_report
 from servobot.progress import RunBar, progress_bar
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
@@ -170,6 +171,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--draws", type=int, default=16, help="envelope draws per table start")
     p.add_argument("--tune", action="store_true")
     p.add_argument("--workers", type=int, default=None)
+    p.add_argument("--executor", default=None, metavar="serial|process|ray|ray:ADDRESS",
+                   help="where the physics runs go (docs/executors.md); default: a process "
+                   "pool of --workers, serial with --workers 1")  # fmt: skip
     p.add_argument("--out", type=Path, required=True)
     a = p.parse_args(argv)
 
@@ -185,8 +189,13 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     envelope, table = load_envelope(a.envelope), load_table(a.table)
     if a.per_population < 0 or (a.per_population == 0 and not a.bests):
         p.error("--per-population must be ≥ 1, or 0 with --bests (the bests alone)")
+    if a.workers is not None and a.workers < 1:
+        p.error(f"--workers must be ≥ 1, got {a.workers}")
     if a.tune and a.per_population == 0:
         p.error("--tune scores the top-20 % sample: give --per-population ≥ 1")
+    executor = make_executor(a.executor, a.workers)
+    if isinstance(executor, RayExecutor):
+        executor.connect()  # a cluster that cannot be joined stops here, exit 2
     samples = {"top20": top_genomes(a.run, a.per_population)} if a.per_population else {}
     if a.bests:
         samples["generation_bests"] = generation_bests(a.run)
@@ -205,7 +214,7 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     matrix = a.out / "matrix"
     bar = RunBar("physics", total=len(reps) * len(WORLDS) * a.starts)
     doc = run_matrix([a.out / "genomes" / f"{r}.txt" for r in reps], matrix, settings,
-                     workers=a.workers, resume=(matrix / "settings.json").exists(),
+                     executor=executor, resume=(matrix / "settings.json").exists(),
                      on_run=bar, on_skip=bar.advance)  # fmt: skip
     bar.close()
     starts = np.asarray(doc["start_poses"]["coverage"], dtype=float)
