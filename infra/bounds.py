@@ -131,6 +131,18 @@ def check_int(value: Any, option: str, *, lo: int, hi: int | None = None) -> int
     return value
 
 
+WORKERS_PER_CORE = 4
+"""The most processes (or Ray CPUs) a command may ask for, per core of this machine."""
+
+
+def check_workers(workers: int | None, option: str = "--workers") -> int | None:
+    """``workers`` (None: one per core, passed through) as an int in [1, ``WORKERS_PER_CORE``
+    × cores], else ``BoundsError`` naming ``option``."""
+    if workers is not None:
+        check_int(workers, option, lo=1, hi=WORKERS_PER_CORE * (os.cpu_count() or 1))
+    return workers
+
+
 def check_nonnegative(value: Any, option: str, unit: str) -> float:
     """``value`` as a finite float ≥ 0 (``is_finite_number``), else ``BoundsError`` naming
     ``option`` and its ``unit``."""

@@ -211,7 +211,7 @@ def test_the_bests_alone_and_an_empty_sample(tmp_path: Path, capsys) -> None:
 
 def test_the_executor_option(tmp_path: Path, capsys) -> None:
     """``--executor serial`` gives the pool's numbers; an executor that names nothing and a
-    worker count below 1 exit 2 naming the option, before any physics."""
+    worker count outside [1, 4 × cores] exit 2 naming the option, before anything is written."""
     import json
 
     from servobot.robustness import measure
@@ -227,9 +227,29 @@ def test_the_executor_option(tmp_path: Path, capsys) -> None:
     assert measure.main([*argv, "--executor", "cluster", "--out", str(tmp_path / "c")]) == 2
     assert "cluster" in capsys.readouterr().err
     assert not (tmp_path / "c").exists()  # refused before anything is written
-    with pytest.raises(SystemExit) as e:
-        measure.main([*argv, "--workers", "0", "--out", str(tmp_path / "d")])
-    assert e.value.code == 2 and "--workers" in capsys.readouterr().err
+    for workers in ("0", "1000000"):
+        assert measure.main([*argv, "--workers", workers, "--out", str(tmp_path / "d")]) == 2
+        assert "--workers must be an integer between 1 and" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()
+
+
+def test_ctrl_c_during_the_physics_says_what_it_kept(tmp_path: Path, capsys, monkeypatch):
+    """Ctrl-C during the physics ends the measurement as every ``servobot`` command ends: exit
+    130, the finished runs kept, the command that resumes."""
+    from servobot.robustness import measure
+
+    run, _ = _run_folder(tmp_path / "run")
+
+    def interrupted(*_a, **_k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(measure, "run_matrix", interrupted)
+    argv = ["--run", str(run), "--per-population", "1", "--starts", "1", "--steps", "2",
+            "--workers", "1", "--out", str(tmp_path / "rank")]  # fmt: skip
+    assert measure.main(argv) == 130
+    err = capsys.readouterr().err
+    assert f"kept: the finished physics runs in {tmp_path / 'rank' / 'matrix'}" in err
+    assert "resume with: python -m servobot.robustness.measure --run" in err
 
 
 def test_agreement_by_population_by_hand():
@@ -266,7 +286,7 @@ def test_sigterm_stops_the_measurement_and_its_workers(tmp_path: Path) -> None:
         stderr=subprocess.PIPE, text=True, start_new_session=True,
     )  # fmt: skip
     t0 = time.monotonic()
-    while not list(out.glob("matrix/runs/*/*/settings.json")):
+    while not list(out.glob("matrix/runs/*/*/report.json")):  # the pool's workers are up
         assert proc.poll() is None, f"ended before its physics runs: {proc.stderr.read()}"
         assert time.monotonic() - t0 < 600  # a cold numba cache on a loaded machine: minutes
         time.sleep(0.05)

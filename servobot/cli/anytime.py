@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import sys
 from pathlib import Path
 from typing import Any
 
 from evolve.anytime import METHODS, AnytimeSettings
 from evolve.settings import WorldSettings
-from infra.bounds import check_int
+from infra.bounds import check_int, check_workers
 from infra.io import check_output_dir
 from servobot.cli.evolve import ga_settings, load_navigation, run_evolution
 from servobot.cli.options import (
@@ -128,8 +127,7 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     args.stage = "coverage"  # ga_settings: coverage's defaults
     ga = ga_settings(args)
     settings = anytime_settings(args)
-    if args.workers is not None:
-        check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    check_workers(args.workers)
     navigation = load_navigation(args.navigation)
     table, warning = load_checked_table(args.table, args.model)
     if warning:

@@ -21,7 +21,7 @@ from calibration.calibrate import calibrate
 from calibration.fit import FitSettings
 from calibration.measure import DEFAULTS, CalibrationSettings
 from calibration.report import format_energy, format_table
-from infra.bounds import check_int, check_number
+from infra.bounds import check_int, check_number, check_workers
 from infra.command import EXIT_FAILED
 from infra.executors import BatchError
 from infra.io import check_output_file
@@ -93,7 +93,7 @@ def _check(args: argparse.Namespace) -> None:
     check_int(args.settle_cycles, "--settle-cycles", lo=0)
     check_int(args.seed, "--seed", lo=0)
     check_number(args.noise, "--noise", lo=0.0, hi=MAX_TARGET_RAD, unit=" rad")
-    check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    check_workers(args.workers)
     check_int(args.fit_evals, "--fit-evals", lo=1)
     if args.rrd is not None:
         check_output_file(args.rrd, option="--rrd")

@@ -38,7 +38,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
-import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -56,7 +55,7 @@ from evolve.settings import (
     coverage_ga_settings,
     navigation_ga_settings,
 )
-from infra.bounds import check_int, check_nonnegative
+from infra.bounds import check_int, check_nonnegative, check_workers
 from infra.errors import InputError
 from infra.executors import Executor
 from infra.io import check_output_dir
@@ -224,8 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def executor(args: argparse.Namespace) -> Executor | None:
     """Where the populations evolve: None = here (live progress), else an executor."""
-    if args.workers is not None:
-        check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    check_workers(args.workers)
     return None if args.executor == "serial" else executor_from_args(args)
 
 

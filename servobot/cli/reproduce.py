@@ -8,11 +8,10 @@ Ctrl-C exits 130 keeping the finished stages and checkpoints (``servobot.cli.run
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 from evolve.settings import BLOCKING_RULES, COLONY_FITNESSES
-from infra.bounds import check_int, check_nonnegative
+from infra.bounds import check_int, check_nonnegative, check_workers
 from infra.errors import InputError
 from servobot.cli.options import (
     add_envelope_option,
@@ -118,8 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _run(args: argparse.Namespace) -> int:
-    if args.workers is not None:
-        check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    check_workers(args.workers)
     if args.seed is not None:
         check_int(args.seed, "--seed", lo=0)
     if args.robots is not None:

@@ -12,11 +12,10 @@ any run), 130 interrupted (finished cells are kept; ``--resume`` skips them).
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
-from infra.bounds import check_int
+from infra.bounds import check_workers
 from infra.command import EXIT_FAILED, Interrupted, command_line, run_command
 from servobot.cli.options import add_executor_option, executor_from_args
 from servobot.progress import RunBar
@@ -94,8 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _run(args: argparse.Namespace) -> int:
-    if args.workers is not None:
-        check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    check_workers(args.workers)
     settings = RobustnessSettings(worlds=args.worlds, starts=args.starts, steps=args.steps,
                                   seed=args.seed, noise_seed=args.noise_seed, table=args.table,
                                   rrd=args.rrd)  # fmt: skip

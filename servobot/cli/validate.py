@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -35,7 +34,7 @@ from evolve.codec import SECTION_GENES, ChromosomeError, read_chromosome
 from evolve.handoff import read_poses
 from evolve.settings import BLOCKING_RULES, ColonySettings, WorldSettings
 from evolve.starts import colony_starts, coverage_starts
-from infra.bounds import check_int, check_need, check_nonnegative, check_number
+from infra.bounds import check_int, check_need, check_nonnegative, check_number, check_workers
 from infra.command import EXIT_FAILED
 from infra.errors import InputError
 from servo_mj.robot.gaits import MAX_TARGET_RAD
@@ -208,8 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _check_options(args: argparse.Namespace, n_starts: int) -> None:
     """Range checks of the numeric options and the run's size, before anything is built."""
     check_int(args.seed, "--seed", lo=0)
-    if args.workers is not None:
-        check_int(args.workers, "--workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    check_workers(args.workers)
     if args.noise is not None:
         check_number(args.noise, "--noise", lo=0.0, hi=MAX_TARGET_RAD, unit=" rad")
     if args.steps is not None:

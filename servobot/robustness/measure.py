@@ -39,6 +39,7 @@ import numpy as np
 from evolve.codec import expressed, format_chromosome
 from evolve.envelope import DEFAULT, NONE, TRAINING_DEFAULTS, Envelope, load_envelope
 from evolve.table import load_table
+from infra.bounds import check_workers
 from infra.command import Interrupted, command_line, run_command
 from infra.executors import RayExecutor, make_executor
 from infra.io import write_report
@@ -189,11 +190,10 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     envelope, table = load_envelope(a.envelope), load_table(a.table)
     if a.per_population < 0 or (a.per_population == 0 and not a.bests):
         p.error("--per-population must be ≥ 1, or 0 with --bests (the bests alone)")
-    if a.workers is not None and a.workers < 1:
-        p.error(f"--workers must be ≥ 1, got {a.workers}")
     if a.tune and a.per_population == 0:
         p.error("--tune scores the top-20 % sample: give --per-population ≥ 1")
-    executor = make_executor(a.executor, a.workers)
+    check_workers(a.workers)
+    executor = None if a.executor is None else make_executor(a.executor, a.workers)
     if isinstance(executor, RayExecutor):
         executor.connect()  # a cluster that cannot be joined stops here, exit 2
     samples = {"top20": top_genomes(a.run, a.per_population)} if a.per_population else {}
@@ -214,7 +214,8 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     matrix = a.out / "matrix"
     bar = RunBar("physics", total=len(reps) * len(WORLDS) * a.starts)
     doc = run_matrix([a.out / "genomes" / f"{r}.txt" for r in reps], matrix, settings,
-                     executor=executor, resume=(matrix / "settings.json").exists(),
+                     executor=executor, workers=a.workers,
+                     resume=(matrix / "settings.json").exists(),
                      on_run=bar, on_skip=bar.advance)  # fmt: skip
     bar.close()
     starts = np.asarray(doc["start_poses"]["coverage"], dtype=float)

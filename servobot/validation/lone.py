@@ -53,7 +53,7 @@ from evolve.settings import ColonySettings, WorldSettings
 from evolve.starts import MAX_HEADING_DEG, navigation_starts_where
 from evolve.table import GaitTable, GaitTableError, load_table, validate_table
 from evolve.world import TableWorld
-from infra.bounds import LIMITS, Need, check_int, check_need
+from infra.bounds import LIMITS, Need, check_int, check_need, check_workers
 from infra.errors import InputError
 from infra.executors import Executor, Failed, make_executor
 from infra.io import check_free_space
@@ -402,8 +402,7 @@ def validation_need(starts: int, steps: int, workers: int | None, rrd: bool) -> 
 def check_sizes(n: int, steps: int, workers: int | None, rrd: bool, seed: int) -> int:
     """Seed, worker count, memory and time, before any run; returns the recordings' bytes."""
     check_int(seed, "seed", lo=0)
-    if workers is not None:
-        check_int(workers, "workers", lo=1, hi=4 * (os.cpu_count() or 1))
+    check_workers(workers, "workers")
     need, disk = validation_need(n, steps, workers, rrd)
     check_need(need, f"{n} starts × {steps} steps")
     return disk
