@@ -233,6 +233,34 @@ def test_the_executor_option(tmp_path: Path, capsys) -> None:
     assert not (tmp_path / "d").exists()
 
 
+def test_a_measurement_grown_to_more_starts_reuses_the_earlier_runs(tmp_path: Path, capsys):
+    """``--reuse``: 1 start grown to 2 takes each cell's first run and gives the numbers of
+    the 2-start measurement run in full; a folder that is no measurement exits 2, before
+    anything is written."""
+    import json
+
+    from servobot.robustness import measure
+
+    run, _ = _run_folder(tmp_path / "run")
+    argv = ["--run", str(run), "--per-population", "1", "--steps", "3", "--draws", "1",
+            "--workers", "1"]  # fmt: skip
+    assert measure.main([*argv, "--starts", "1", "--out", str(tmp_path / "one")]) == 0
+    grown = [*argv, "--starts", "2", "--reuse", str(tmp_path / "one")]
+    assert measure.main([*grown, "--out", str(tmp_path / "grown")]) == 0
+    assert measure.main([*argv, "--starts", "2", "--out", str(tmp_path / "full")]) == 0
+    doc_g, doc_f = (json.loads((tmp_path / d / "ranking.json").read_text())
+                    for d in ("grown", "full"))  # fmt: skip
+    assert doc_g["agreement"] == doc_f["agreement"]
+    cells = sorted((tmp_path / "grown" / "matrix" / "runs").glob("*/*/report.json"))
+    assert len(cells) == 4
+    for c in cells:
+        assert json.loads(c.read_text())["meta"]["reused_runs"] == 1
+    capsys.readouterr()
+    assert measure.main([*grown[:-1], str(run), "--out", str(tmp_path / "bad")]) == 2
+    assert "not a robustness matrix folder" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+
 def test_ctrl_c_during_the_physics_says_what_it_kept(tmp_path: Path, capsys, monkeypatch):
     """Ctrl-C during the physics ends the measurement as every ``servobot`` command ends: exit
     130, the finished runs kept, the command that resumes."""

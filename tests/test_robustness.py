@@ -4,9 +4,11 @@ worlds registry, and bad inputs."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from chromosome_text import LIGHT_FOLLOWER
 
@@ -15,7 +17,12 @@ from infra.rundir import RunDirError
 from servo_mj.robot.model import model_sha256
 from servo_mj.robot.variant import VariantParams, read_variant
 from servobot.cli import main as servobot
-from servobot.robustness.matrix import RobustnessSettings, run_matrix, unique_names
+from servobot.robustness.matrix import (
+    RobustnessError,
+    RobustnessSettings,
+    run_matrix,
+    unique_names,
+)
 from servobot.robustness.worlds import (
     BUILT_IN,
     HELD_OUT,
@@ -122,6 +129,124 @@ def test_resume_reruns_only_an_unfinished_cell(matrix, tmp_path):
     assert again == doc  # same seeds: the same record
 
 
+def _without_wall_times(report: dict) -> list[dict]:
+    """A cell report's runs with the per-run wall times (which no two runs share) dropped."""
+    return [{k: ({f: v for f, v in side.items() if f != "wall_s"} if isinstance(side, dict)
+                 and k in ("table", "physics") else side) for k, side in r.items()}
+            for r in report["runs"]]  # fmt: skip
+
+
+def test_a_grown_matrix_takes_the_earlier_runs_and_equals_one_run_in_full(matrix, tmp_path):
+    """Start poses and servo noise of run k depend on the seed and k alone, so a matrix grown
+    from 1 start to 2 takes each cell's first run from the earlier one and runs only the
+    second; its records are those of the 2-start matrix run from scratch."""
+    out, files, _ = matrix
+    grown = dataclasses.replace(SETTINGS, starts=2)
+    runs, taken = [], []
+    doc = run_matrix(files, tmp_path / "grown", grown, executor=SerialExecutor(), reuse=out,
+                     on_run=runs.append, on_skip=taken.append)  # fmt: skip
+    assert [r["index"] for r in runs] == [1, 1, 1, 1] and taken == [1, 1, 1, 1]
+    full = run_matrix(files, tmp_path / "full", grown, executor=SerialExecutor())
+    def placeless(d: dict) -> dict:  # the weak world's model file lies in each folder
+        return d | {"worlds": [{k: v for k, v in w.items() if k != "model"} for w in d["worlds"]]}
+
+    assert placeless(doc) == placeless(full)
+    for w in WORLDS:
+        for name in ("c16", "nav"):
+            a, b = (tmp_path / d / "runs" / w / name for d in ("grown", "full"))
+            ra, rb = (json.loads((c / "report.json").read_text()) for c in (a, b))
+            assert _without_wall_times(ra) == _without_wall_times(rb)
+            assert ra["meta"]["reused_runs"] == 1 and "reused_runs" not in rb["meta"]
+            with np.load(a / "tracks.npz") as ta, np.load(b / "tracks.npz") as tb:
+                assert sorted(ta.files) == sorted(tb.files)
+                for k in ta.files:
+                    np.testing.assert_array_equal(ta[k], tb[k])
+
+
+def test_reuse_takes_nothing_from_other_starts_and_refuses_bad_folders(matrix, tmp_path):
+    out, files, _ = matrix
+    runs: list[dict] = []
+    other = dataclasses.replace(SETTINGS, seed=1, worlds=("shipped",))  # other start poses
+    run_matrix(files[:1], tmp_path / "s1", other, executor=SerialExecutor(), reuse=out,
+               on_run=runs.append)  # fmt: skip
+    assert len(runs) == 1
+    with pytest.raises(RobustnessError, match="the output folder itself"):
+        run_matrix(files, out, SETTINGS, executor=SerialExecutor(), resume=True, reuse=out)
+    with pytest.raises(RobustnessError, match="--rrd"):
+        run_matrix(files, tmp_path / "r", dataclasses.replace(SETTINGS, rrd=True), reuse=out)
+
+
+class _StopAfter(SerialExecutor):
+    """A serial executor interrupted (Ctrl-C) after ``n`` items."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+
+    def imap(self, fn, items):
+        for k, outcome in enumerate(super().imap(fn, items)):
+            if k == self.n:
+                raise KeyboardInterrupt
+            yield outcome
+
+
+def test_an_interrupted_matrix_keeps_its_finished_runs_and_shares_cycles(tmp_path):
+    """Two coverage chromosomes × 2 starts in ``shipped``, their runs from one start sharing
+    one physics tree: Ctrl-C after the first start keeps its two runs (``kept/``), the resumed
+    matrix runs only the second start, and every record is the one of a matrix run apart."""
+    files = [tmp_path / "c16.txt", tmp_path / "d16.txt"]
+    files[0].write_text(GENE * 16)
+    files[1].write_text("00 0100000 0010000 0100000 0010000\n" * 16)
+    s = RobustnessSettings(worlds=("shipped",), starts=2, steps=20)
+    full = run_matrix(files, tmp_path / "full", s, executor=SerialExecutor())
+    cut = tmp_path / "cut"
+    with pytest.raises(KeyboardInterrupt):
+        run_matrix(files, cut, s, executor=_StopAfter(1), share=True)
+    assert sorted(p.relative_to(cut).as_posix() for p in (cut / "kept").rglob("*.npz")) == [
+        "kept/shipped/c16/run0.npz", "kept/shipped/d16/run0.npz"]  # fmt: skip
+    runs, skipped = [], []
+    again = run_matrix(files, cut, s, executor=SerialExecutor(), resume=True, share=True,
+                       on_run=runs.append, on_skip=skipped.append)  # fmt: skip
+    assert [r["index"] for r in runs] == [1, 1] and skipped == [1, 1]
+    assert again == full and not (cut / "kept").exists()
+    for name in ("c16", "d16"):
+        a, b = (json.loads((d / "runs" / "shipped" / name / "report.json").read_text())
+                for d in (cut, tmp_path / "full"))  # fmt: skip
+        assert _without_wall_times(a) == _without_wall_times(b)
+
+
+def test_the_share_option_gives_the_same_matrix(tmp_path):
+    (tmp_path / "c16.txt").write_text(GENE * 16)
+    (tmp_path / "d16.txt").write_text("00 0100000 0010000 0100000 0010000\n" * 16)
+    files = [str(tmp_path / f) for f in ("c16.txt", "d16.txt")]
+    argv = ["--worlds", "shipped", "--starts", "1", "--steps", "10", "--workers", "1",
+            "--no-progress"]  # fmt: skip
+    for out, extra in (("a", []), ("b", ["--share"])):
+        assert servobot(["robustness", *files, *argv, *extra, "--out", str(tmp_path / out)]) == 0
+    a, b = (json.loads((tmp_path / d / "robustness.json").read_text()) for d in "ab")
+    assert a == b
+
+
+@pytest.mark.parametrize(
+    ("record", "message"),
+    [
+        ({"index": 2}, "run index 2 is not one of 2 starts"),
+        ({"index": 0, "start": {"x": 1.0, "y": 2.0, "h": 3.0}}, "run 0 started at"),
+        ({"index": 1, "physics": None}, "run 1 has no physics result"),
+    ],
+)
+def test_a_validation_refuses_taken_runs_that_are_not_its_own(record, message):
+    from servobot.validation.lone import ValidationError, plan_validation, start_record
+
+    starts = np.array([[250.0, 250.0, 0.0], [200.0, 300.0, 90.0]])
+    bits = np.array([[int(c) for c in GENE.replace(" ", "").strip()]] * 16, dtype=np.uint8)
+    good = {"index": 0, "start": start_record(tuple(starts[0])), "physics": {}, "error": None}
+    plan = plan_validation(bits, starts, table=np.zeros((16, 3)), done=[good])
+    assert [j.index for j in plan.jobs] == [1]
+    rec = good | {"start": start_record(tuple(starts[record["index"] % 2]))} | record
+    with pytest.raises(ValidationError, match=message):
+        plan_validation(bits, starts, table=np.zeros((16, 3)), done=[rec])
+
+
 def test_built_in_worlds():
     assert list(BUILT_IN) == ["shipped", "station-seen", "heavy", "weak", "slippery", "long-legs"]
     assert BUILT_IN["station-seen"].arena.station_height_m == 0.30
@@ -158,6 +283,7 @@ def test_a_variant_file_is_a_world_named_by_its_stem(tmp_path):
         (["{c16}", "--steps", "0"], "--steps must be an integer ≥ 1, got 0"),
         (["{c16}", "--worlds", "{c16}"], "c16.txt: not well-formed XML"),
         (["{c7}"], "expected 8 or 16 genes, found 7"),
+        (["{c16}", "--reuse", "{dir}"], "not a robustness matrix folder"),
     ],
 )
 def test_bad_input_exits_2_naming_it(argv, message, tmp_path, capsys):

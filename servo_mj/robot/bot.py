@@ -212,6 +212,16 @@ class ServoBot:
         self.cycles += 1
         return result
 
+    def servo_state(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """What a cycle depends on besides MuJoCo's state and the noise generator: the last
+        nominal target and command (rad) and the cycle count (``set_servo_state``)."""
+        return self._nominal.copy(), self._command.copy(), self.cycles
+
+    def set_servo_state(self, state: tuple[np.ndarray, np.ndarray, int]) -> None:
+        """Restore a ``servo_state``."""
+        nominal, command, self.cycles = state
+        self._nominal, self._command = nominal.copy(), command.copy()
+
     # --- faults ----------------------------------------------------------------------------
     def _clear_warnings(self) -> None:
         self._warnings[:] = 0

@@ -6,7 +6,7 @@ names, or ``servobot variant`` files), unchanged, through ``servobot validate``'
 (``servobot.robustness.run_matrix``). Writes ``robustness.{json,md,png}``, the worlds' models
 and one validation folder per cell into ``--out``; prints the Markdown grid. Exit status: 0
 done, 1 some physics runs failed (recorded in their cells), 2 bad input (named; checked before
-any run), 130 interrupted (finished cells are kept; ``--resume`` skips them).
+any run), 130 interrupted (finished runs are kept; ``--resume`` skips them).
 """
 
 from __future__ import annotations
@@ -88,6 +88,21 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="--out holds another run: delete its files (only those) first",
     )
+    p.add_argument(
+        "--reuse",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="an earlier matrix folder: take its runs this matrix would repeat (same "
+        "chromosome, table, settings and start at the same index, e.g. the first N when "
+        "--starts grows) instead of running them again",
+    )
+    p.add_argument(
+        "--share",
+        action="store_true",
+        help="the runs from one start in one world go to one worker and simulate the gait "
+        "cycles they share once (same results; pays off for many similar chromosomes)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p  # fmt: skip
 
@@ -102,7 +117,8 @@ def _run(args: argparse.Namespace) -> int:
     try:
         doc = run_matrix(
             args.chromosome, args.out, settings, executor=executor_from_args(args),
-            workers=args.workers, resume=args.resume, force=args.force, on_run=bar,
+            workers=args.workers, resume=args.resume, force=args.force, reuse=args.reuse,
+            share=args.share, on_run=bar,
             on_skip=bar.advance, log=lambda m: print(m, file=sys.stderr),
         )  # fmt: skip
     finally:
@@ -124,7 +140,8 @@ def main(argv: list[str] | None = None) -> int:
 
     def interrupted() -> Interrupted:
         return Interrupted(
-            f"the finished cells in {args.out / 'runs'} (an unfinished cell leaves no report)",
+            f"the finished runs in {args.out} (cells in runs/, runs of unfinished cells in "
+            "kept/)",
             command_line(PROG, argv, "--resume", drop=["--force"]),
         )
 

@@ -28,7 +28,21 @@ milliseconds) and the matrix checks that each controller's table runs agree acro
 Resume: the folder is a run folder (lock, ``settings.json``; ``resume``/``force`` as every
 command). With ``resume``, a cell whose ``report.json`` exists and matches the cell's inputs
 (chromosome, table values, start poses, validation settings and model hash) is read back
-instead of run again.
+instead of run again, and the finished runs of a cell that was interrupted (kept in
+``DIR/kept/`` as they end) are taken, so only its unfinished runs run again.
+
+Shared cycles: with ``share``, the runs of every controller from one start in one world go
+to one worker together and simulate the gait cycles they have in common once
+(``servo_mj.world.shared_physics``): the same records, for controllers of one population
+about half the physics.
+
+Reuse: ``reuse`` names an earlier matrix folder whose runs this one may take instead of
+running them again, e.g. a matrix grown from 10 starts to 30 (start poses and servo noise of
+run k depend on the seed and k alone, so its first 10 runs are the earlier ones). A run is
+taken when its cell (same world, controller name) holds the same chromosome, table values
+and validation settings (model hash, steps, seeds) and the run started from the same pose at
+the same index with a physics result; the cell's report lists how many it took
+(``meta.reused_runs``). Only the inputs are compared, not the code that ran them.
 """
 
 from __future__ import annotations
@@ -36,6 +50,8 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import shutil
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,7 +65,7 @@ from evolve.starts import coverage_starts
 from infra.bounds import Need, check_int, check_need
 from infra.errors import InputError
 from infra.executors import Executor, make_executor
-from infra.io import ReadError, read_json
+from infra.io import ReadError, atomic_write, read_json
 from infra.rundir import RECORD_FILE, run_folder
 from servo_mj.robot.model import model_label
 from servobot.robustness.report import ROBUSTNESS_OUTPUTS, summarise_matrix, write_outputs
@@ -81,10 +97,14 @@ MODELS_DIR = "models"
 """Subfolder of the built-in variant worlds' model files."""
 RUNS_DIR = "runs"
 """Subfolder of the cells' validations: ``runs/{world}/{controller}/``."""
+KEPT_DIR = "kept"
+"""Subfolder of the finished runs of unfinished cells: ``kept/{world}/{controller}/run{k}.npz``
+(the record as JSON and both tracks), read back on resume, removed when the matrix is done."""
 ROBUSTNESS_FILES = (
     *ROBUSTNESS_OUTPUTS,
     f"{MODELS_DIR}/*.xml",
     *(f"{RUNS_DIR}/*/*/{f}" for f in (*VALIDATION_FILES, RECORD_FILE)),
+    f"{KEPT_DIR}/*/*/run*.npz",
 )
 """Every file the matrix writes into its folder besides ``settings.json`` (``--force``)."""
 
@@ -247,6 +267,79 @@ def finished_report(cell: Cell, expected: dict[str, Any]) -> dict[str, Any] | No
     return doc if have == expected else None
 
 
+def reusable_runs(cell: Cell, expected: dict[str, Any], reuse: Path) -> list[dict[str, Any]]:
+    """The runs of ``cell``'s counterpart in the matrix folder ``reuse`` that this cell would
+    repeat (module docstring, "Reuse"), tracks included; [] where it has none or cannot be
+    read."""
+    folder = reuse / RUNS_DIR / cell.world.name / cell.controller.name
+    try:
+        doc = read_json(folder / "report.json", what="validation report")
+        settings = dict(doc["settings"])
+        settings.pop("model", None)
+        if (doc["chromosome"], doc["table"]["values"], settings) != (
+            expected["chromosome"], expected["table"], expected["settings"]
+        ):
+            return []
+        runs = _belonging(doc["runs"], expected)
+        with np.load(folder / "tracks.npz") as npz:
+            return [r | {"tracks": {w: npz[f"{w}_{r['index']}"] for w in ("table", "physics")}}
+                    for r in runs]  # fmt: skip
+    except (ReadError, KeyError, TypeError, ValueError, OSError, zipfile.BadZipFile):
+        return []  # nothing to take: the cell runs in full
+
+
+def keep_run(out: Path, cell: Cell, record: dict[str, Any]) -> None:
+    """Write a finished run of ``cell`` (``execute``'s record, tracks included) into ``out``'s
+    ``KEPT_DIR``, atomically."""
+    rec = {k: v for k, v in record.items() if k != "tracks"}
+    tracks = {f"track_{w}": t for w, t in record.get("tracks", {}).items()}
+    path = out / KEPT_DIR / cell.world.name / cell.controller.name / f"run{rec['index']}.npz"
+    text = np.array(json.dumps(jsonable(rec)))
+    atomic_write(path, lambda tmp: np.savez(tmp, record=text, **tracks))
+
+
+def kept_runs(out: Path, cell: Cell, expected: dict[str, Any]) -> list[dict[str, Any]]:
+    """The runs of ``cell`` kept in ``out`` (``keep_run``) that belong to it (index, start,
+    a physics result); the folder's ``settings.json`` vouches for the rest of its inputs."""
+    found = []
+    folder = out / KEPT_DIR / cell.world.name / cell.controller.name
+    for f in sorted(folder.glob("run*.npz")):
+        try:
+            with np.load(f) as npz:
+                rec = json.loads(str(npz["record"]))
+                tracks = {w: npz[f"track_{w}"] for w in ("table", "physics")}
+        except (OSError, KeyError, ValueError, zipfile.BadZipFile):
+            continue  # an unreadable file: that run runs again
+        found.append(rec | {"tracks": tracks})
+    return _belonging(found, expected)
+
+
+def _belonging(runs: list[dict[str, Any]], expected: dict[str, Any]) -> list[dict[str, Any]]:
+    """The runs whose index is one of ``expected``'s starts, started from that start, with a
+    physics result."""
+    starts = expected["starts"]
+    return [
+        r for r in runs
+        if isinstance(r.get("index"), int) and 0 <= r["index"] < len(starts)
+        and r.get("start") == starts[r["index"]]
+        and r.get("physics") is not None and r.get("error") is None
+    ]  # fmt: skip
+
+
+def check_reuse(reuse: Path | None, out: Path, s: RobustnessSettings) -> None:
+    """``reuse`` is an earlier matrix folder other than ``out`` and the runs write no
+    recordings (a taken run has none here), else ``RobustnessError`` naming it."""
+    if reuse is None:
+        return
+    if not (reuse / RECORD_FILE).is_file() or not (reuse / RUNS_DIR).is_dir():
+        raise RobustnessError(f"--reuse {reuse}: not a robustness matrix folder "
+                              f"(no {RECORD_FILE} and {RUNS_DIR}/)")  # fmt: skip
+    if reuse.resolve() == out.resolve():
+        raise RobustnessError(f"--reuse {reuse}: the output folder itself; use --resume")
+    if s.rrd:
+        raise RobustnessError("--reuse with --rrd: the reused runs have no recordings here")
+
+
 def plan_cells(
     controllers: list[Controller], worlds: list[PhysicsWorldSpec], out: Path,
     s: RobustnessSettings,
@@ -304,6 +397,8 @@ def run_matrix(
     workers: int | None = None,
     resume: bool = False,
     force: bool = False,
+    reuse: Path | None = None,
+    share: bool = False,
     on_run: Callable[[dict[str, Any]], None] | None = None,
     on_skip: Callable[[int], None] | None = None,
     log: Callable[[str], None] | None = None,
@@ -313,7 +408,10 @@ def run_matrix(
     ``executor`` (or a pool of ``workers``; ``infra.executors.make_executor``) runs every
     cell's starts as one batch (each cell's report is written when its last run ends);
     ``on_run(record)`` is called as each physics run finishes, ``on_skip(n)`` with a cell's run
-    count when a finished cell is read back (``resume``), ``log(message)`` with warnings (a
+    count when a finished cell is read back (``resume``) and with the runs taken from the
+    matrix folder ``reuse`` (module docstring) or kept from an interrupted run of this one;
+    ``share``: runs from one start in one world simulate the gait cycles they share once
+    (``servobot.validation.lone.execute``; the same records); ``log(message)`` with warnings (a
     table file without a model hash). Every input is checked before the folder is
     taken (``InputError`` subclasses: ``RobustnessError``, ``WorldError``, ``BoundsError``,
     ``ValidationError``, ``RunDirError``).
@@ -325,6 +423,8 @@ def run_matrix(
         log(warning)
     worlds = resolve_worlds(settings.worlds)
     out = Path(out)
+    reuse = None if reuse is None else Path(reuse)
+    check_reuse(reuse, out, settings)
     cells = plan_cells(controllers, worlds, out, settings)
     info = table_info(table)
     rows = world_rows(worlds, out)
@@ -335,25 +435,40 @@ def run_matrix(
                     command="robustness"):
         for w in worlds:
             materialise(w, out / MODELS_DIR)
-        plans, todo = [], []
+        plans, todo, todo_cells = [], [], []
         for cell in cells:
             key = (cell.world.name, cell.controller.name)
-            done = finished_report(cell, _expected(cell, table.values, settings))
+            expected = _expected(cell, table.values, settings)
+            done = finished_report(cell, expected)
             if done is not None:
                 reports[key] = done
                 if on_skip is not None:
                     on_skip(len(cell.starts))
                 continue
+            kept = [] if settings.rrd else kept_runs(out, cell, expected)  # no recordings kept
+            have = {r["index"] for r in kept}
+            reused = [] if reuse is None else [
+                r for r in reusable_runs(cell, expected, reuse) if r["index"] not in have
+            ]  # fmt: skip
+            taken = kept + reused
+            if taken and on_skip is not None:
+                on_skip(len(taken))
             todo.append(key)
+            todo_cells.append(cell)
             plans.append(plan_validation(
                 cell.controller.bits, cell.starts, table=table, arena=cell.world.arena,
                 out_dir=cell.folder, rrd=settings.rrd, max_steps=cell.steps,
                 seed=settings.servo_seed, model=cell.model, force=True,
                 workers=None if executor else workers,
                 meta={"world": cell.world.name, "chromosome_file": str(cell.controller.file),
-                      "command": "servobot robustness"},
+                      "command": "servobot robustness"}
+                     | ({"reused_runs": len(reused), "reused_from": str(reuse)} if reused else {}),
+                done=taken,
             ))  # fmt: skip
-        reports.update(zip(todo, execute(plans, ex, on_run), strict=True))
+        keep = None if settings.rrd else lambda i, r: keep_run(out, todo_cells[i], r)
+        reports.update(zip(todo, execute(plans, ex, on_run, share=share, on_record=keep),
+                           strict=True))  # fmt: skip
+        shutil.rmtree(out / KEPT_DIR, ignore_errors=True)  # every cell has its report now
         doc = summarise_matrix(rows, [_controller_row(c) for c in controllers], reports,
                                _head(settings, cells, info))  # fmt: skip
         write_outputs(out, doc)

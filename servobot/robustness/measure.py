@@ -3,12 +3,13 @@ run's controllers as physics does, and which envelope scales would rank them bes
 
     python -m servobot.robustness.measure --run runs/none_s0 --envelope none \\
         --table runs/cal/gait_table.json --per-population 5 --starts 4 --out runs/rank_none_s0 \\
-        [--bests] [--tune] [--workers 2] [--executor ray:ADDRESS]
+        [--bests] [--tune] [--workers 2] [--executor ray:ADDRESS] [--reuse EARLIER_OUT]
 
 Genomes: ``--per-population`` distinct genomes from each final population's top 20 %
 (``ranking.top_genomes``), and with ``--bests`` the best of every saved generation. Each runs
 from the same ``--starts`` seeded coverage starts in the table world and in the physics
-worlds ``shipped`` and ``station-seen`` (``run_matrix`` into ``OUT/matrix``, resumable; one
+worlds ``shipped`` and ``station-seen`` (``run_matrix`` into ``OUT/matrix``, resumable;
+``--reuse EARLIER_OUT`` takes an earlier measurement's runs of the same genomes and starts; one
 physics cell per behaviour: genomes equal in their expressed bits, ``evolve.codec.expressed``,
 run alike, and ``ranking.json``'s ``runs_as`` names the genome each clone's runs are). The
 table side is the arm's own world: the exact table for ``none``, else the mean over draws of
@@ -44,7 +45,7 @@ from infra.command import Interrupted, command_line, run_command
 from infra.executors import RayExecutor, make_executor
 from infra.io import write_report
 from servobot.progress import RunBar, progress_bar
-from servobot.robustness.matrix import RobustnessSettings, run_matrix
+from servobot.robustness.matrix import RobustnessSettings, check_reuse, run_matrix
 from servobot.robustness.ranking import (
     RankingError,
     agreement,
@@ -175,6 +176,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--executor", default=None, metavar="serial|process|ray|ray:ADDRESS",
                    help="where the physics runs go (docs/executors.md); default: a process "
                    "pool of --workers, serial with --workers 1")  # fmt: skip
+    p.add_argument("--reuse", type=Path, default=None, metavar="DIR",
+                   help="an earlier measurement's --out: its physics runs of the same genomes "
+                   "and starts are taken, not run again (e.g. going from 10 starts to 30)")
+    p.add_argument("--no-share", action="store_true",
+                   help="run every physics run on its own (default: the runs from one start "
+                   "in one world simulate the gait cycles they share once; same numbers)")
     p.add_argument("--out", type=Path, required=True)
     a = p.parse_args(argv)
 
@@ -193,6 +200,8 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     if a.tune and a.per_population == 0:
         p.error("--tune scores the top-20 % sample: give --per-population ≥ 1")
     check_workers(a.workers)
+    reuse = None if a.reuse is None else a.reuse / "matrix"
+    check_reuse(reuse, a.out / "matrix", RobustnessSettings())  # before anything is written
     executor = None if a.executor is None else make_executor(a.executor, a.workers)
     if isinstance(executor, RayExecutor):
         executor.connect()  # a cluster that cannot be joined stops here, exit 2
@@ -216,6 +225,7 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     doc = run_matrix([a.out / "genomes" / f"{r}.txt" for r in reps], matrix, settings,
                      executor=executor, workers=a.workers,
                      resume=(matrix / "settings.json").exists(),
+                     reuse=reuse, share=not a.no_share,
                      on_run=bar, on_skip=bar.advance)  # fmt: skip
     bar.close()
     starts = np.asarray(doc["start_poses"]["coverage"], dtype=float)

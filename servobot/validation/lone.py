@@ -39,7 +39,7 @@ import contextlib
 import dataclasses
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -289,11 +289,12 @@ def physics_world(job: StartJob, on_frame: Callable[..., None] | None = None) ->
     )  # fmt: skip
 
 
-def run_start(job: StartJob) -> dict[str, Any]:
-    """Run one start pose in both worlds (worker function; catches physics failures)."""
+def run_start(job: StartJob, make_world: Callable[[], Any] | None = None) -> dict[str, Any]:
+    """Run one start pose in both worlds (worker function; catches physics failures).
+    ``make_world()``, when given, makes the physics world (a ``SharedView``; no recording)."""
     x, y, h = job.start
     rec = None
-    if job.rrd_path is not None:
+    if job.rrd_path is not None and make_world is None:
         from servobot.recording import RunRecorder
 
         rec = RunRecorder.for_validation(job)
@@ -309,7 +310,10 @@ def run_start(job: StartJob) -> dict[str, Any]:
 
     def physics_run(last: dict[str, Any]) -> tuple[dict[str, Any], np.ndarray]:
         t0 = time.perf_counter()
-        pw = physics_world(job, on_frame=None if rec is None else rec.on_frame)
+        if make_world is not None:
+            pw = make_world()
+        else:
+            pw = physics_world(job, on_frame=None if rec is None else rec.on_frame)
         if rec is not None:
             rec.attach_physics(pw)
 
@@ -329,6 +333,27 @@ def run_start(job: StartJob) -> dict[str, Any]:
         out["power"] = job.power
     last = {"steps": 0, "squares": 0, "pose": [x, y, h]}
     return run_both_worlds(out, rec, table_run, physics_run, last)
+
+
+def run_shared_starts(jobs: tuple[StartJob, ...]) -> list[dict[str, Any]]:
+    """``run_start`` of each job, all from one start with one servo-noise seed in one physics
+    world (``shares_physics``), their physics run through one ``PhysicsTree``: the cycles two
+    runs share are simulated once; every record is the one ``run_start`` gives (worker
+    function)."""
+    from servo_mj.world.shared_physics import PhysicsTree
+
+    tree = PhysicsTree(physics_world(jobs[0]))
+    return [run_start(job, tree.view) for job in jobs]
+
+
+def shares_physics(job: Any) -> tuple | None:
+    """What a lone start job's physics depends on besides its gaits (start, noise seed and
+    index, world, arena, physics settings, model, mode, power, steps): jobs with equal keys
+    can share a ``PhysicsTree``. None for a job that cannot (a colony's, a recorded run)."""
+    if not isinstance(job, StartJob) or job.rrd_path is not None:
+        return None
+    return (job.index, tuple(map(float, job.start)), job.seed, repr(job.world), repr(job.arena),
+            repr(job.physics), job.model, job.mode, job.power, job.max_steps)  # fmt: skip
 
 
 def run_both_worlds(
@@ -488,10 +513,58 @@ class Plan:
     disk: int
     """Bytes of the recordings."""
     force: bool
+    done: tuple[Record, ...] = ()
+    """Records of runs taken from an earlier validation (tracks included): no job runs them,
+    the report holds them beside the new ones, in start order."""
+
+
+SHARE_GROUP_MAX = 12
+"""[chosen] At most this many runs share one ``PhysicsTree`` (one executor item): a group's
+records come back when its last run ends, so the cap bounds the work an interruption loses
+and keeps items for many workers; consecutive plans (a sample's genomes, population by
+population) fill a group, where most cycles are shared."""
+
+
+def _batch(
+    plans: list[Plan], share: bool
+) -> tuple[list[tuple[Callable[[Any], Any], Any]], list[list[tuple[int, int]]]]:
+    """The executor's items for ``plans`` and, for each item, the (plan, job) pairs it runs:
+    one job per item, or with ``share`` each group of up to ``SHARE_GROUP_MAX`` lone jobs
+    whose physics can share a ``PhysicsTree`` (``shares_physics``) as one
+    ``run_shared_starts`` item."""
+    items: list[tuple[Callable[[Any], Any], Any]] = []
+    owners: list[list[tuple[int, int]]] = []
+    groups: dict[tuple, int] = {}
+    for i, plan in enumerate(plans):
+        for k, job in enumerate(plan.jobs):
+            key = shares_physics(job) if share and plan.work is run_start else None
+            if key is not None and key in groups and len(owners[groups[key]]) < SHARE_GROUP_MAX:
+                n = groups[key]
+                items[n] = (run_shared_starts, (*items[n][1], job))
+                owners[n].append((i, k))
+                continue
+            if key is not None:
+                groups[key] = len(items)
+                job = (job,)
+            items.append((run_shared_starts if key is not None else plan.work, job))
+            owners.append([(i, k)])
+    for n, (work, payload) in enumerate(items):  # a group of one runs as a plain job
+        if work is run_shared_starts and len(payload) == 1:
+            items[n] = (run_start, payload[0])
+    if share:  # start by start: every plan's first starts finish first (cells end together)
+        start = [plans[i].jobs[k].index for i, k in (o[0] for o in owners)]
+        order = sorted(range(len(items)), key=start.__getitem__)
+        items, owners = [items[n] for n in order], [owners[n] for n in order]
+    return items, owners
 
 
 def execute(
-    plans: list[Plan], ex: Executor, on_run: Callable[[Record], None] | None = None
+    plans: list[Plan],
+    ex: Executor,
+    on_run: Callable[[Record], None] | None = None,
+    *,
+    share: bool = False,
+    on_record: Callable[[int, Record], None] | None = None,
 ) -> list[dict[str, Any]]:
     """Run every plan's jobs as one batch on ``ex`` and return each plan's report, in order.
 
@@ -500,9 +573,12 @@ def execute(
     (an interrupted batch keeps the finished plans). One batch keeps every worker busy where
     one batch per plan would wait for each plan's slowest run and start a pool per plan.
     A plan's summary ``wall_s`` is the time from the batch's start to its last run's end.
+    ``share``: lone runs of different plans from one start in one physics world go to one
+    worker together and simulate the gait cycles they share once (``run_shared_starts``; the
+    same records). ``on_record(plan index, record)`` is called with each run's record, tracks
+    included, before its plan's report is made (e.g. to keep it on disk).
     """
-    items = [(plan.work, job) for plan in plans for job in plan.jobs]
-    owner = [(i, k) for i, plan in enumerate(plans) for k in range(len(plan.jobs))]
+    items, owners = _batch(plans, share)
     runs: list[list[Record]] = [[{} for _ in plan.jobs] for plan in plans]
     left = [len(plan.jobs) for plan in plans]
     reports: list[dict[str, Any]] = [{} for _ in plans]
@@ -517,10 +593,11 @@ def execute(
 
         def finish(i: int) -> None:
             plan = plans[i]
+            done = sorted([*plan.done, *runs[i]], key=lambda r: r["index"])
             tracks = {f"{w}_{r['index']}": t
-                      for r in runs[i] for w, t in r.pop("tracks", {}).items()}  # fmt: skip
+                      for r in done for w, t in r.pop("tracks", {}).items()}  # fmt: skip
             reports[i] = plan.head | {
-                "runs": runs[i], "summary": plan.summary(runs[i], time.perf_counter() - t0)
+                "runs": done, "summary": plan.summary(done, time.perf_counter() - t0)
             }
             if plan.out is not None:
                 plan.write(plan.out, reports[i], tracks)
@@ -530,17 +607,20 @@ def execute(
                 finish(i)
         with contextlib.closing(ex.imap(_apply, items)) as outcomes:  # stops workers on Ctrl-C
             for n, outcome in outcomes:
-                i, k = owner[n]
                 if isinstance(outcome, Failed):
-                    rec = _failed_record(plans[i].jobs[k], outcome.message)
-                else:
-                    rec = outcome.value
-                runs[i][k] = rec
-                if on_run is not None:
-                    on_run(rec)
-                left[i] -= 1
-                if left[i] == 0:
-                    finish(i)
+                    recs = [_failed_record(plans[i].jobs[k], outcome.message)
+                            for i, k in owners[n]]  # fmt: skip
+                else:  # a group's records, or one run's
+                    recs = outcome.value if isinstance(outcome.value, list) else [outcome.value]
+                for (i, k), rec in zip(owners[n], recs, strict=True):
+                    runs[i][k] = rec
+                    if on_record is not None:
+                        on_record(i, rec)
+                    if on_run is not None:
+                        on_run(rec)
+                    left[i] -= 1
+                    if left[i] == 0:
+                        finish(i)
     return reports
 
 
@@ -589,6 +669,7 @@ def plan_validation(
     force: bool = False,
     powers: Any = None,
     kind: Kind = LONE,
+    done: Sequence[Record] = (),
 ) -> Plan:
     """Check a validation of ``bits`` (16, 30) from every start (N, 3: x, y cm; h deg) in the
     table and physics, and make its jobs (``validate`` runs it; ``execute`` runs plans). A
@@ -607,9 +688,13 @@ def plan_validation(
     with ``load_checked_table``). ``kind``: what runs at each start
     (``servobot.validation.colony.validate_colony`` passes a colony's; then ``starts`` is
     (N, R, 3), ``max_steps`` bounds each robot's own steps and ``powers`` is refused). The
-    report is written into ``out_dir`` when given. Raises ``infra.errors.InputError``
-    subclasses (``ValidationError``, ``BoundsError``, ``RunDirError``, ...) on bad input,
-    before any run (the run folder is taken by ``execute``).
+    report is written into ``out_dir`` when given. ``done``: records of runs an earlier
+    validation of the same chromosome, table and settings finished (``index``, ``start`` and
+    ``tracks`` as ``execute`` gives them), e.g. the first N of a validation grown to more
+    starts; their starts run no job and the report holds them as they are. Raises
+    ``infra.errors.InputError`` subclasses (``ValidationError``, ``BoundsError``,
+    ``RunDirError``, ...) on bad input, before any run (the run folder is taken by
+    ``execute``).
     """
     world = world or WorldSettings()
     arena = arena or ArenaSettings()
@@ -641,7 +726,8 @@ def plan_validation(
         rrd_path = str(out / f"run{k}.rrd") if rrd and out else None
         return kind.job(index=k, start=start, rrd_path=rrd_path, **common, **own)
 
-    jobs = [job(k, p) for k, p in enumerate(poses)]
+    kept = _check_done(done, poses)
+    jobs = [job(k, p) for k, p in enumerate(poses) if k not in kept]
     head = report_head(arr, table, values, settings, meta)
     record = {"chromosome": head["chromosome"], "table": head["table"]["values"],
               "starts": jsonable(poses), "settings": settings, "rrd": rrd}  # fmt: skip
@@ -651,8 +737,26 @@ def plan_validation(
         jobs, kind.work, head=head,
         summary=lambda runs, wall: kind.summarise(runs, world, wall),
         write=lambda path, report, tracks: kind.write(path, report, tracks, world),
-        out=out, record=record, disk=disk, force=force,
+        out=out, record=record, disk=disk, force=force, done=tuple(done),
     )  # fmt: skip
+
+
+def _check_done(done: Sequence[Record], poses: list[Any]) -> set[int]:
+    """The start indices of ``done``, each a finished run of one of ``poses`` (its index in
+    range, its start that pose's record), no index twice; else ``ValidationError``."""
+    kept: set[int] = set()
+    for r in done:
+        k = r.get("index")
+        if not isinstance(k, int) or not 0 <= k < len(poses) or k in kept:
+            raise ValidationError(f"done: run index {k!r} is not one of {len(poses)} starts "
+                                  "(or is given twice)")  # fmt: skip
+        if r.get("start") != jsonable(start_record(poses[k])):
+            raise ValidationError(f"done: run {k} started at {r.get('start')}, not at start "
+                                  f"{k} of this validation")  # fmt: skip
+        if r.get("physics") is None or r.get("error") is not None:
+            raise ValidationError(f"done: run {k} has no physics result; it must run again")
+        kept.add(k)
+    return kept
 
 
 def validate(
