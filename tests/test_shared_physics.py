@@ -128,3 +128,34 @@ def test_execute_groups_runs_by_start_and_world_and_keeps_the_reports() -> None:
     for s, a in zip(shared, alone, strict=True):
         assert [_plain(r | {"tracks": {}}) for r in s["runs"]] == [
             _plain(r | {"tracks": {}}) for r in a["runs"]]  # fmt: skip
+
+
+def test_anytime_physics_tests_share_cycles_with_the_same_results() -> None:
+    """Anytime learning's physics runs (``measure_shared_runs``): squares, residuals and ends
+    of separate runs."""
+    import dataclasses
+
+    from servobot.anytime.run import PunctuationJob, measure_run, measure_shared_runs
+
+    starts = np.array([START])
+    jobs = tuple(
+        PunctuationJob(plan_validation(bits, starts, table=np.zeros((16, 3)),
+                                       max_steps=6).jobs[0], 0.0)
+        for bits in (A, B, A)
+    )  # fmt: skip
+    for a, b in zip(measure_shared_runs(jobs), map(measure_run, jobs), strict=True):
+        for f in dataclasses.fields(a):
+            x, y = getattr(a, f.name), getattr(b, f.name)
+            assert np.array_equal(x, y) if isinstance(x, np.ndarray) else x == y, f.name
+        assert a.squares is not None and len(a.gaits) == 6
+
+
+def test_the_benchmark_runs_and_finds_the_records_identical(tmp_path, capsys) -> None:
+    from evolve.codec import format_chromosome
+    from servobot.robustness import share_bench
+
+    for name, bits in (("a", A), ("b", B), ("c", A)):
+        (tmp_path / f"{name}.txt").write_text(format_chromosome(bits) + "\n")
+    assert share_bench.main([str(tmp_path), "--start", "1", "--steps", "4"]) == 0
+    out = capsys.readouterr().out
+    assert "records identical" in out and "gait cycles walked 12, simulated shared 6" in out

@@ -69,6 +69,7 @@ from servo_mj.world.arena import ArenaSettings, station_distance_cm
 from servobot.anytime import report
 from servobot.validation.lone import (
     MODE,
+    SHARE_GROUP_MAX,
     StartJob,
     jsonable,
     physics_world,
@@ -95,11 +96,12 @@ class PunctuationJob:
     """Cycles beginning closer than this to the station block are not counted."""
 
 
-def measure_run(job: PunctuationJob) -> PhysicsRun:
+def measure_run(job: PunctuationJob, make_world: Callable[[], Any] | None = None) -> PhysicsRun:
     """Run one start in physics (worker function): squares reached and the residuals of the
-    cycles that count; a physics failure becomes the run's ``error``."""
+    cycles that count; a physics failure becomes the run's ``error``. ``make_world()``, when
+    given, makes the physics world (a ``SharedView``)."""
     sj = job.run
-    world = LoggingWorld(physics_world(sj))
+    world = LoggingWorld(physics_world(sj) if make_world is None else make_world())
     try:
         res = run(sj.bits, world, mode=MODE, settings=sj.world, max_steps=sj.max_steps)
     except Exception as exc:  # noqa: BLE001 - a physics failure is this run's record
@@ -121,12 +123,24 @@ def measure_run(job: PunctuationJob) -> PhysicsRun:
     )
 
 
+def measure_shared_runs(jobs: tuple[PunctuationJob, ...]) -> list[PhysicsRun]:
+    """``measure_run`` of each job, all from one start with one noise seed, through one
+    ``PhysicsTree``: the gait cycles the genomes share are simulated once, the results are
+    those of separate runs (worker function)."""
+    from servo_mj.world.shared_physics import PhysicsTree
+
+    tree = PhysicsTree(physics_world(jobs[0].run))
+    return [measure_run(job, tree.view) for job in jobs]
+
+
 def physics_tester(
     ex: Executor, *, world: WorldSettings, arena: ArenaSettings, physics: PhysicsSettings,
     model: ModelFile, settings: AnytimeSettings, on_run: Callable[[], None] | None = None,
 ) -> PhysicsTester:  # fmt: skip
     """The ``PhysicsTester`` of ``evolve_anytime``: each (genome, start) one ``measure_run``
-    on ``ex``; ``on_run()`` after each (progress)."""
+    on ``ex``, the genomes from one start in groups of up to ``SHARE_GROUP_MAX`` that share
+    their common gait cycles (``measure_shared_runs``; the same results); ``on_run()`` after
+    each run (progress)."""
 
     def test(genomes: np.ndarray, starts: np.ndarray, seed: int, base: np.ndarray) -> list:
         jobs = [
@@ -140,13 +154,21 @@ def physics_tester(
             for genome in genomes
             for m, s in enumerate(starts)
         ]  # fmt: skip
+        n = len(starts)  # job g·n + m: genome g from start m
+        groups = [list(range(m + n * g0, min(len(jobs), m + n * (g0 + SHARE_GROUP_MAX)), n))
+                  for m in range(n) for g0 in range(0, len(genomes), SHARE_GROUP_MAX)]  # fmt: skip
+        items = [tuple(jobs[i] for i in g) for g in groups]
         out: list[PhysicsRun] = [PhysicsRun(None, None, "not run")] * len(jobs)
-        with contextlib.closing(ex.imap(measure_run, jobs)) as done:  # stops workers on Ctrl-C
-            for i, outcome in done:
-                failed = isinstance(outcome, Failed)
-                out[i] = PhysicsRun(None, None, outcome.message) if failed else outcome.value
-                if on_run is not None:
-                    on_run()
+        with contextlib.closing(ex.imap(measure_shared_runs, items)) as done:  # Ctrl-C stops
+            for k, outcome in done:
+                if isinstance(outcome, Failed):
+                    runs = [PhysicsRun(None, None, outcome.message)] * len(groups[k])
+                else:
+                    runs = outcome.value
+                for i, r in zip(groups[k], runs, strict=True):
+                    out[i] = r
+                    if on_run is not None:
+                        on_run()
         return out
 
     return test
