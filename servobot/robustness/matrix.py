@@ -247,6 +247,19 @@ def _expected(cell: Cell, table_values: np.ndarray, s: RobustnessSettings) -> di
     return json.loads(json.dumps(jsonable(doc)))
 
 
+def _inputs(doc: dict[str, Any]) -> dict[str, Any]:
+    """A cell report's inputs, as ``_expected`` gives them (KeyError, TypeError or ValueError
+    when ``doc`` is not a validation report)."""
+    settings = dict(doc["settings"])
+    settings.pop("model", None)
+    return {
+        "chromosome": doc["chromosome"],
+        "table": doc["table"]["values"],
+        "starts": [r["start"] for r in doc["runs"]],
+        "settings": settings,
+    }
+
+
 def finished_report(cell: Cell, expected: dict[str, Any]) -> dict[str, Any] | None:
     """The cell's validation report if it exists and matches ``expected``, else None."""
     path = cell.folder / "report.json"
@@ -254,14 +267,7 @@ def finished_report(cell: Cell, expected: dict[str, Any]) -> dict[str, Any] | No
         return None
     try:
         doc = read_json(path, what="validation report")
-        settings = dict(doc["settings"])
-        settings.pop("model", None)
-        have = {
-            "chromosome": doc["chromosome"],
-            "table": doc["table"]["values"],
-            "starts": [r["start"] for r in doc["runs"]],
-            "settings": settings,
-        }
+        have = _inputs(doc)
     except (ReadError, KeyError, TypeError, ValueError):
         return None  # not a report of this cell: it is run again
     return doc if have == expected else None
@@ -274,11 +280,7 @@ def reusable_runs(cell: Cell, expected: dict[str, Any], reuse: Path) -> list[dic
     folder = reuse / RUNS_DIR / cell.world.name / cell.controller.name
     try:
         doc = read_json(folder / "report.json", what="validation report")
-        settings = dict(doc["settings"])
-        settings.pop("model", None)
-        if (doc["chromosome"], doc["table"]["values"], settings) != (
-            expected["chromosome"], expected["table"], expected["settings"]
-        ):
+        if {**_inputs(doc), "starts": None} != {**expected, "starts": None}:  # any starts
             return []
         runs = _belonging(doc["runs"], expected)
         with np.load(folder / "tracks.npz") as npz:

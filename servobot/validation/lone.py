@@ -531,30 +531,26 @@ def _batch(
     """The executor's items for ``plans`` and, for each item, the (plan, job) pairs it runs:
     one job per item, or with ``share`` each group of up to ``SHARE_GROUP_MAX`` lone jobs
     whose physics can share a ``PhysicsTree`` (``shares_physics``) as one
-    ``run_shared_starts`` item."""
-    items: list[tuple[Callable[[Any], Any], Any]] = []
+    ``run_shared_starts`` item, start by start (every plan's first starts finish first)."""
     owners: list[list[tuple[int, int]]] = []
-    groups: dict[tuple, int] = {}
+    filling: dict[tuple, list[tuple[int, int]]] = {}  # the group each key is filling
     for i, plan in enumerate(plans):
         for k, job in enumerate(plan.jobs):
             key = shares_physics(job) if share and plan.work is run_start else None
-            if key is not None and key in groups and len(owners[groups[key]]) < SHARE_GROUP_MAX:
-                n = groups[key]
-                items[n] = (run_shared_starts, (*items[n][1], job))
-                owners[n].append((i, k))
+            group = None if key is None else filling.get(key)
+            if group is not None and len(group) < SHARE_GROUP_MAX:
+                group.append((i, k))
                 continue
-            if key is not None:
-                groups[key] = len(items)
-                job = (job,)
-            items.append((run_shared_starts if key is not None else plan.work, job))
             owners.append([(i, k)])
-    for n, (work, payload) in enumerate(items):  # a group of one runs as a plain job
-        if work is run_shared_starts and len(payload) == 1:
-            items[n] = (run_start, payload[0])
-    if share:  # start by start: every plan's first starts finish first (cells end together)
-        start = [plans[i].jobs[k].index for i, k in (o[0] for o in owners)]
-        order = sorted(range(len(items)), key=start.__getitem__)
-        items, owners = [items[n] for n in order], [owners[n] for n in order]
+            if key is not None:
+                filling[key] = owners[-1]
+    if share:
+        owners.sort(key=lambda o: plans[o[0][0]].jobs[o[0][1]].index)
+    items = [
+        (plans[o[0][0]].work, plans[o[0][0]].jobs[o[0][1]]) if len(o) == 1
+        else (run_shared_starts, tuple(plans[i].jobs[k] for i, k in o))
+        for o in owners
+    ]  # fmt: skip
     return items, owners
 
 
