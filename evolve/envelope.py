@@ -134,6 +134,18 @@ class Envelope:
     predicted worse with it and a navigation section evolved with it docks worse (seed 1:
     65 % against 89 %), so ``default`` keeps 0 (docs/envelope.md)."""
 
+    body_front: float = 0.0
+    """[chosen] The robot's footprint against the station block (``station_stops``), units: 0
+    keeps the disc (``ROBOT_RADIUS`` + ``station_margin``); > 0 makes it an oval oriented with
+    the robot, reaching this far ahead of the centre, ``body_back`` behind it and
+    ``body_side`` to each side (``geometry.oval_box_gauge2``): the MuJoCo robot meets the
+    block with its docking probes and front feet head-on and with its middle feet (13 cm out)
+    sideways, where the disc is 15 units every way (docs/envelope.md)."""
+    body_back: float = 0.0
+    """[chosen] With ``body_front`` > 0: the footprint's reach behind the centre, units."""
+    body_side: float = 0.0
+    """[chosen] With ``body_front`` > 0: the footprint's reach to each side, units."""
+
     warmup_fraction: float = 0.0
     """[chosen] Incremental evolution: the first ``round(warmup_fraction × generations)``
     generations of a stage train in the world of §3, the rest in the envelope (its tests
@@ -160,9 +172,15 @@ class Envelope:
     (the worst draw: a controller scores what it does in the world of the envelope it copes
     with least, Jakobi's criterion of reliability)."""
 
+    @property
+    def body(self) -> tuple[float, float, float]:
+        """The oval body's reach ahead, behind and sideways (units); zeros for the disc."""
+        return self.body_front, self.body_back, self.body_side
+
     def __post_init__(self) -> None:
         for name in ("scatter_scale", "bias_scale", "station_seen_p", "reach_units",
-                     "pace_spread", "turn_spread", "warmup_fraction", "station_margin"):
+                     "pace_spread", "turn_spread", "warmup_fraction", "station_margin",
+                     "body_front", "body_back", "body_side"):  # fmt: skip
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise EnvelopeError(f"{name} must be a finite number, got {v!r}")
@@ -198,6 +216,16 @@ class Envelope:
         if self.station_margin > 0.0 and self.station_stops is False:
             raise EnvelopeError(f"station_margin {self.station_margin:g} needs station_stops true "
                                 f"or \"always\" (it is false)")  # fmt: skip
+        if any(self.body) and not all(self.body):
+            raise EnvelopeError(f"body_front, body_back and body_side must all be > 0 or all 0 "
+                                f"(the disc), got {self.body}")  # fmt: skip
+        if any(self.body) and self.station_stops is False:
+            raise EnvelopeError("an oval body (body_front > 0) needs station_stops true or "
+                                "\"always\" (it is false)")  # fmt: skip
+        if any(self.body) and self.station_margin > 0.0:
+            raise EnvelopeError(f"station_margin {self.station_margin:g} widens the disc; an "
+                                "oval body (body_front > 0) sets its own reach: use one of "
+                                "them")  # fmt: skip
         if self.station_blocking not in BLOCKING_RULES:
             raise EnvelopeError(f"station_blocking must be one of {', '.join(BLOCKING_RULES)}, "
                                 f"got {self.station_blocking!r}")  # fmt: skip
@@ -272,6 +300,7 @@ TRAINING_DEFAULTS = {
 LATER_DEFAULTS = {
     **TRAINING_DEFAULTS, "unseen_stops_p": 0.0, "station_blocking": "cancel",
     "station_friction": 0.5, "pace_spread": 0.0, "turn_spread": 0.0, "station_margin": 0.0,
+    "body_front": 0.0, "body_back": 0.0, "body_side": 0.0,
 }  # fmt: skip
 """Fields added after the first envelopes were recorded, at their defaults (left out of
 ``to_dict``)."""

@@ -372,10 +372,70 @@ def block_bits(x, y, h, x0, y0, x1, y1, reach, p):
 
 
 @register_jitable
-def block_stops(x, y, nx, ny, x0, y0, x1, y1, radius):
-    """Whether a move from centre (x, y) to (nx, ny) is cancelled by the block [x0, x1] ×
-    [y0, y1] grown by ``radius``: the new centre lies closer than ``radius`` to the block and
-    closer than the old one (a robot placed overlapping it may back out, never go deeper)."""
+def _oval_segment2(au, av, bu, bv, a, b):
+    """Least (u/a)² + (v/b)² over the segment from (au, av) to (bu, bv) (body frame)."""
+    du = bu - au
+    dv = bv - av
+    qa = (du / a) ** 2 + (dv / b) ** 2
+    t = 0.0
+    if qa > 0.0:
+        t = min(max(-(au * du / (a * a) + av * dv / (b * b)) / qa, 0.0), 1.0)
+    u = au + t * du
+    v = av + t * dv
+    return (u / a) ** 2 + (v / b) ** 2
+
+
+@register_jitable
+def oval_box_gauge2(x, y, h, x0, y0, x1, y1, front, back, side):
+    """How deep the box [x0, x1] × [y0, y1] reaches into a robot's oval footprint at pose
+    (x, y, h): the least (u/a)² + (v/b)² over the box's points, (u, v) a point in the robot's
+    frame (u ahead along heading ``h``, v to the side; units), a = ``front`` ahead of the
+    centre and ``back`` behind it, b = ``side``. Below 1: the box overlaps the footprint (two
+    half-ellipses joined at the centre); 0 when the centre lies in the box. The least lies on
+    the box's boundary, so on one of its edges, whose pieces ahead of and behind the centre
+    are each a quadratic in the edge's parameter."""
+    if x0 <= x <= x1 and y0 <= y <= y1:
+        return 0.0
+    r = h * DEG2RAD
+    fx = math.sin(r)
+    fy = math.cos(r)
+    xs = (x0, x1, x1, x0)
+    ys = (y0, y0, y1, y1)
+    best = math.inf
+    for k in range(4):
+        px = xs[k] - x
+        py = ys[k] - y
+        qx = xs[(k + 1) % 4] - x
+        qy = ys[(k + 1) % 4] - y
+        au = px * fx + py * fy
+        av = px * fy - py * fx
+        bu = qx * fx + qy * fy
+        bv = qx * fy - qy * fx
+        if au * bu < 0.0:  # the edge crosses the robot's lateral axis: split it there
+            mv = av + au / (au - bu) * (bv - av)
+            a_first = front if au > 0.0 else back
+            a_second = back if au > 0.0 else front
+            best = min(best, _oval_segment2(au, av, 0.0, mv, a_first, side),
+                       _oval_segment2(0.0, mv, bu, bv, a_second, side))  # fmt: skip
+        else:
+            a = front if au + bu > 0.0 else back
+            best = min(best, _oval_segment2(au, av, bu, bv, a, side))
+    return best
+
+
+@register_jitable
+def block_stops(x, y, h, nx, ny, nh, x0, y0, x1, y1, radius, front, back, side):
+    """Whether a move from pose (x, y, h) to (nx, ny, nh) is cancelled by the block [x0, x1] ×
+    [y0, y1]. With ``front`` 0 the robot is a disc: the new centre lies closer than ``radius``
+    to the block and closer than the old one (a robot placed overlapping it may back out,
+    never go deeper). Otherwise its footprint is the oval of ``oval_box_gauge2`` (``front``,
+    ``back``, ``side``; units): the block overlaps the new footprint deeper than the old one."""
+    if front > 0.0:
+        reach = max(front, back, side)
+        if box_distance2(nx, ny, x0, y0, x1, y1) >= reach * reach:
+            return False
+        new = oval_box_gauge2(nx, ny, nh, x0, y0, x1, y1, front, back, side)
+        return new < 1.0 and new < oval_box_gauge2(x, y, h, x0, y0, x1, y1, front, back, side)
     d2 = box_distance2(nx, ny, x0, y0, x1, y1)
     return d2 < radius * radius and d2 < box_distance2(x, y, x0, y0, x1, y1)
 
@@ -593,6 +653,7 @@ __all__ = [
     "block_bits",
     "block_slide_end",
     "block_stops",
+    "oval_box_gauge2",
     "box_distance2",
     "contact_yaw",
     "disc_bits",

@@ -94,9 +94,12 @@ from evolve.interpreter import (
 )
 from evolve.settings import BLOCKING_RULES
 from evolve.variation import (
+    E_BACK,
     E_FRICTION,
+    E_FRONT,
     E_RADIUS,
     E_SCATTER,
+    E_SIDE,
     E_SLIDE,
     E_X0,
     E_X1,
@@ -210,7 +213,7 @@ def _walk(
     end, blocked), end = −1 if the run goes on, blocked when another robot or the station
     block blocked the move (cancelled or slid).
     """
-    scale, stops, x0, y0, x1, y1, radius, slide_block, friction = run_env
+    scale, stops, x0, y0, x1, y1, radius, slide_block, friction, body = run_env
     f, t, dh = table[gait, 0], table[gait, 1], table[gait, 2]
     if scale > 0.0:
         f, t, dh = scattered_row(
@@ -224,7 +227,11 @@ def _walk(
     cancel = blocked
     if slide and blocked:
         nx, ny, cancel = _slid(x, y, nx, ny, others, me, min_dist)
-    if stops and not cancel and block_stops(x, y, nx, ny, x0, y0, x1, y1, radius):
+    if (
+        stops
+        and not cancel
+        and block_stops(x, y, h, nx, ny, nh, x0, y0, x1, y1, radius, body[0], body[1], body[2])
+    ):
         blocked = True
         cancel = True
         if slide_block:
@@ -253,12 +260,13 @@ def _walk(
 @njit(cache=True, inline="always")
 def _run_env(env, station):
     """(scatter scale, whether the block stops, x0, y0, x1, y1, radius, whether it slides,
-    friction) of a run from the packed envelope ``env`` (``evolve.variation.E_*``) and its
-    ``station`` bits: scalars that ``_walk`` reads."""
+    friction, the oval body's (front, back, side)) of a run from the packed envelope ``env``
+    (``evolve.variation.E_*``) and its ``station`` bits: scalars that ``_walk`` reads."""
     stops = (station & STATION_STOPS) != 0
     x0, y0, x1, y1 = env[E_X0], env[E_Y0], env[E_X1], env[E_Y1]
     slides = env[E_SLIDE] != 0.0
-    return env[E_SCATTER], stops, x0, y0, x1, y1, env[E_RADIUS], slides, env[E_FRICTION]
+    body = (env[E_FRONT], env[E_BACK], env[E_SIDE])
+    return env[E_SCATTER], stops, x0, y0, x1, y1, env[E_RADIUS], slides, env[E_FRICTION], body
 
 
 @njit(cache=True, inline="always")

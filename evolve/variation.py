@@ -47,11 +47,13 @@ from evolve.table import N_GAITS, validate_table
 
 STREAM_SCATTER, STREAM_BIAS, STREAM_REACH, STREAM_STATION, STREAM_STOPS, STREAM_PACE = range(1, 7)
 """Stream tags: what a draw of a run is for."""
-E_SCATTER, E_X0, E_Y0, E_X1, E_Y1, E_RADIUS, E_SLIDE, E_FRICTION = range(8)
+E_SCATTER, E_X0, E_Y0, E_X1, E_Y1, E_RADIUS, E_SLIDE, E_FRICTION, E_FRONT, E_BACK, E_SIDE = (
+    range(11))  # fmt: skip
 """Layout of the packed envelope vector the kernels read (``Variation.packed``): the scatter
 scale, the block's box (units), the robot radius (units) that the block stops, 1 when a move
-it stops slides along it (``Envelope.station_blocking``) else 0, and the slide's friction."""
-E_SIZE = 8
+it stops slides along it (``Envelope.station_blocking``) else 0, the slide's friction, and
+the oval body's reach ahead, behind and sideways (units; 0: the disc)."""
+E_SIZE = 11
 STATION_SEEN, STATION_STOPS = 1, 2
 """Bits of a run's station (``Variation.station``): the block is there for the object sensors;
 it stops motion."""
@@ -206,6 +208,7 @@ class Variation:
         out[E_RADIUS] = self.radius
         out[E_SLIDE] = self.envelope.station_blocking == "slide"
         out[E_FRICTION] = self.envelope.station_friction
+        out[E_FRONT], out[E_BACK], out[E_SIDE] = self.envelope.body
         return out
 
     def kernel_draws(self, starts: int, robots: int) -> KernelDraws:
@@ -256,6 +259,7 @@ class RobotRun:
         self.stops = bool(station & STATION_STOPS)
         self.stop_block = variation.block
         self.radius = variation.radius
+        self.body = variation.envelope.body
         self.slides = variation.envelope.station_blocking == "slide"
         self.friction = variation.envelope.station_friction
 
@@ -274,7 +278,10 @@ class RobotRun:
         """The move from pose (x, y, h) to (nx, ny, nh) past the station block: (end pose,
         blocked). A move the block stops ends at (x, y, h) (cancelled), or slid along the
         block with the heading kept (``geometry.block_slide_end``)."""
-        if not (self.stops and geo.block_stops(x, y, nx, ny, *self.stop_block, self.radius)):
+        if not (
+            self.stops
+            and geo.block_stops(x, y, h, nx, ny, nh, *self.stop_block, self.radius, *self.body)
+        ):
             return nx, ny, nh, False
         if not self.slides:
             return x, y, h, True
@@ -299,9 +306,12 @@ def variation_for(
 
 
 __all__ = [
+    "E_BACK",
     "E_FRICTION",
+    "E_FRONT",
     "E_RADIUS",
     "E_SCATTER",
+    "E_SIDE",
     "E_SIZE",
     "E_SLIDE",
     "E_X0",

@@ -58,19 +58,27 @@ def test_cycle_errors_start_each_cycle_from_physics_pose():
 
 def test_the_command_writes_its_report_and_refuses_bad_settings(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(block_contact, "POSE_SETS", {"tiny": ([(458.0, 262.0, 45.0)], (0,))})
-    args = ["--frictions", "0,0.5", "--cycles", "2", "--margins", "0,3", "--out", str(tmp_path)]
+    monkeypatch.setattr(block_contact, "CORNERS", ([(468.0, 294.0, 90.0)], (0,)))
+    args = ["--frictions", "0,0.5", "--cycles", "2", "--margins", "0,3", "--bodies", "15/15/15",
+            "--out", str(tmp_path)]  # fmt: skip
     assert block_contact.main(args) == 0
     doc = json.loads((tmp_path / "block_contact.json").read_text())
     assert set(doc["sets"]["tiny"]["rules"]) == {"cancel", "slide 0", "slide 0.5"}
     by_cycle = doc["cycle_by_cycle"]["tiny"]
     assert by_cycle["cases"] == 2  # every cycle of the one case
-    assert set(by_cycle["rules"]) == {"cancel", "slide 0.5, margin 0", "slide 0.5, margin 3"}
+    assert set(by_cycle["rules"]) == {"cancel", "slide 0.5, margin 0", "slide 0.5, margin 3",
+                                      "slide 0.5, body 15/15/15"}  # fmt: skip
+    # an oval as wide as long is the disc, cycle for cycle
+    for name in ("tiny", "corners"):
+        rules = doc["cycle_by_cycle"][name]["rules"]
+        assert rules["slide 0.5, body 15/15/15"] == rules["slide 0.5, margin 0"]
     assert (tmp_path / "block_contact.png").stat().st_size > 0
     bad_args = (["--frictions", "half"], ["--frictions", "-1"], ["--cycles", "0"],
-                ["--margins", "-2"])  # fmt: skip
+                ["--margins", "-2"], ["--bodies", "15/15"], ["--bodies", "15/0/12"])  # fmt: skip
     for bad in bad_args:
         with pytest.raises(SystemExit) as err:
             block_contact.main([*bad, "--out", str(tmp_path)])
         assert err.value.code == 2
     err = capsys.readouterr().err
     assert "station_friction must be" in err and "--margins: station_margin must be" in err
+    assert "--bodies: a body is FRONT/BACK/SIDE" in err and "--bodies: body_front, body_back" in err

@@ -40,7 +40,7 @@ from evolve.envelope import (
     shipped_std,
     station_block,
 )
-from evolve.geometry import block_bits, pack_world, wrap180
+from evolve.geometry import block_bits, block_stops, oval_box_gauge2, pack_world, wrap180
 from evolve.interpreter import END_KILL_ZONE, END_POWER_EMPTY, run, run_colony
 from evolve.population import PopulationRun, evaluate_sections
 from evolve.settings import ColonySettings, GASettings
@@ -74,9 +74,10 @@ SLIDING = dataclasses.replace(
 EVERY_ENVELOPE = pytest.mark.parametrize(
     "envelope",
     [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY, SLIDING,
-     dataclasses.replace(SLIDING, station_margin=3.0)],
+     dataclasses.replace(SLIDING, station_margin=3.0),
+     dataclasses.replace(SLIDING, body_front=20.0, body_back=14.0, body_side=11.0)],
     ids=["everything", "loud", "in the way", "half in the way", "sliding, paced",
-         "sliding, margin 3"],
+         "sliding, margin 3", "sliding, oval body"],
 )  # fmt: skip
 """The kernel = interpreter cases: every aspect, loud scales, the block's stop rules."""
 KEY = (7, 3)
@@ -556,6 +557,73 @@ def test_the_block_stops_a_centre_within_radius_plus_margin():
         assert tuple(ev.final_pose[0, 0]) == world.pose()
 
 
+def test_the_oval_body_gauge_hand_worked_and_against_a_dense_sampling_of_the_block():
+    """``oval_box_gauge2`` for a robot (front a = 20, back 14, side b = 10) d = 12 units west
+    of the block's face (x0 = 480) at y = 250: facing it (east) (d/a)²; side on (north, south)
+    (d/b)²; turned away (west) (d/14)²; heading 45° the least over the face's points (480,
+    250 + s), u = (d + s)/√2, v = (d − s)/√2, is at s = d (a² − b²)/(a² + b²) = 7.2:
+    2d²/(a² + b²) = 0.576. Any pose: the least over a dense grid of the box's points."""
+    box = station_block(WORLD)
+    body = (20.0, 14.0, 10.0)
+    for h, want in ((90.0, (12 / 20) ** 2), (0.0, (12 / 10) ** 2), (180.0, (12 / 10) ** 2),
+                    (270.0, (12 / 14) ** 2), (45.0, 0.576)):  # fmt: skip
+        assert oval_box_gauge2(468.0, 250.0, h, *box, *body) == pytest.approx(want, rel=1e-12)
+    assert oval_box_gauge2(490.0, 250.0, 33.0, *box, *body) == 0.0  # centre in the block
+    gx, gy = np.meshgrid(np.linspace(box[0], box[2], 201), np.linspace(box[1], box[3], 601))
+    rng = np.random.default_rng(5)
+    poses = zip(rng.uniform(440, 479, 40), rng.uniform(190, 310, 40), rng.uniform(0, 360, 40),
+                strict=True)  # fmt: skip
+    for x, y, h in poses:
+        r = math.radians(h)
+        u = (gx - x) * math.sin(r) + (gy - y) * math.cos(r)
+        v = (gx - x) * math.cos(r) - (gy - y) * math.sin(r)
+        dense = ((u / np.where(u > 0, body[0], body[1])) ** 2 + (v / body[2]) ** 2).min()
+        got = oval_box_gauge2(x, y, h, *box, *body)
+        assert got <= dense + 1e-12 and got == pytest.approx(dense, rel=2e-3, abs=1e-6)
+
+
+def test_an_oval_as_wide_as_long_stops_the_moves_the_disc_stops():
+    """Body 15/15/15 is the 15-unit disc: over random moves near the block the two rules stop
+    the same ones, and the oval stops none past its reach."""
+    box = station_block(WORLD)
+    rng = np.random.default_rng(11)
+    x, nx = rng.uniform(440, 500, (2, 4000))
+    y, ny = rng.uniform(180, 320, (2, 4000))
+    h, nh = rng.uniform(0, 360, (2, 4000))
+    stopped = 0
+    for k in range(4000):
+        disc = block_stops(x[k], y[k], h[k], nx[k], ny[k], nh[k], *box, 15.0, 0.0, 0.0, 0.0)
+        oval = block_stops(x[k], y[k], h[k], nx[k], ny[k], nh[k], *box, 99.0, 15.0, 15.0, 15.0)
+        assert disc == oval
+        stopped += disc
+    assert stopped > 100
+
+
+def test_an_oval_body_passes_the_corner_the_disc_cannot_and_meets_the_face_further_out():
+    """Body 20/15/12 (``Envelope.body_*``). Walking east 13 units north of the block's north
+    end (y 280), gait 0's move past its corner is stopped by the 15-unit disc, not by the oval
+    12 units wide; head-on, a move ending 17 units from the face is stopped by the oval 20
+    units long, not by the disc. The kernel agrees with the interpreter."""
+    x0, y1 = station_block(WORLD)[0], station_block(WORLD)[3]
+    oval = dataclasses.replace(STOPS_ONLY, body_front=20.0, body_back=15.0, body_side=12.0)
+    probe = TableWorld(PAPER_TABLE, 400.0, 250.0, 90.0)
+    probe.step(0)
+    stride = probe.pose()[0] - 400.0
+    walk = chrom(gene("00", G(0), G(0), G(0), G(0)))
+    corner = (x0 + 2.0 - stride, y1 + 13.0, 90.0)  # the open move ends 2 units past x0
+    head_on = (x0 - 17.0 - stride, 250.0, 90.0)  # … 17 units short of the face
+    for pose, disc_stops in ((corner, True), (head_on, False)):
+        assert TableWorld(PAPER_TABLE, *pose, envelope=STOPS_ONLY).step(0) is disc_stops
+        world = TableWorld(PAPER_TABLE, *pose, envelope=oval)
+        assert world.step(0) is (not disc_stops)
+        open_world = TableWorld(PAPER_TABLE, *pose)
+        open_world.step(0)
+        assert world.pose() == (open_world.pose() if disc_stops else pose)  # passes or cancelled
+        ev = evaluate(walk[None], np.array([pose]), table=PAPER_TABLE, mode="coverage",
+                      max_steps=1, envelope=oval)  # fmt: skip
+        assert tuple(ev.final_pose[0, 0]) == world.pose()
+
+
 def test_a_slid_move_that_another_robot_blocks_is_cancelled():
     """In a colony the end of a move slid along the block must also be clear of the others."""
     pose = (460.0, 250.0, 45.0)
@@ -590,6 +658,10 @@ def test_named_and_file_envelopes_load(tmp_path):
     assert not NONE.varies and DEFAULT.varies and DEFAULT.scatter_scale == 1.0
 
 
+OVAL = {"body_front": 20, "body_back": 15, "body_side": 12}
+"""An oval body's fields (``Envelope.body_*``)."""
+
+
 @pytest.mark.parametrize(
     ("doc", "match"),
     [
@@ -609,6 +681,10 @@ def test_named_and_file_envelopes_load(tmp_path):
         ({"station_stops": True, "station_margin": -1}, "station_margin must be ≥ 0"),
         ({"station_stops": True, "station_margin": "far"}, "station_margin must be a finite"),
         ({"station_margin": 3}, "station_margin 3 needs station_stops"),
+        ({"station_stops": True, "body_front": 20}, "body_front, body_back and body_side must all"),
+        ({"station_stops": True, **OVAL, "body_side": -12}, "body_side must be ≥ 0"),
+        (OVAL, "an oval body .* needs station_stops"),
+        ({"station_stops": True, "station_margin": 3, **OVAL}, "station_margin 3 widens the disc"),
         ({"pace_spread": 1.0}, r"pace_spread must be in \[0, 1\)"),
         ({"turn_spread": -0.1}, "turn_spread must be ≥ 0"),
         ({"draws_per_start": 1.5}, "draws_per_start must be an integer ≥ 1"),

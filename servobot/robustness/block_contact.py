@@ -3,7 +3,7 @@
 
     python -m servobot.robustness.block_contact [--table runs/cal/gait_table.json] \\
         [--frictions 0,0.25,0.4,0.5,0.6,0.75,1] [--cycles 3] [--margins 0,1,2,3,4,5] \\
-        [--out runs/block_contact]
+        [--bodies 15/15/12,18/15/12] [--out runs/block_contact]
 
 From each pose of a set in front of the block, the robot walks ``--cycles`` cycles of one gait
 in the physics world ``shipped`` (whose low block stops it) and in the table world with the
@@ -19,6 +19,10 @@ physics cycle of every case, each rule (``cancel``, and ``slide`` at friction 0.
 ``Envelope.station_margin``) walks that one cycle in the table world from physics' pose; its
 errors are the distance to physics' end and the difference of the turns. Every cycle counts,
 stopped or not, so a block that stops at a larger distance is judged on the near misses too.
+``--bodies 15/15/12,...`` adds ``slide`` rules whose robot is an oval (``Envelope.body_front``
+/ ``body_back`` / ``body_side``, units) to that comparison, and both run on a third pose set,
+``corners``: poses beside the block's two ends, walking past its corners, where the robot's
+narrow sides come closer to the block than its disc.
 """
 
 from __future__ import annotations
@@ -53,6 +57,14 @@ POSE_SETS: dict[str, tuple[list[Pose], tuple[int, ...]]] = {
 }
 """Start poses (x, y units; heading deg) in front of the block (x ≥ 480, |y − 250| ≤ 30) and
 the gaits walked from each."""
+CORNERS: tuple[list[Pose], tuple[int, ...]] = (
+    [*itertools.product((462.0, 468.0), (294.0, 297.0, 300.0), (60.0, 90.0, 120.0)),
+     *itertools.product((462.0, 468.0), (206.0, 203.0, 200.0), (60.0, 90.0, 120.0))],
+    tuple(range(N_GAITS)),
+)  # fmt: skip
+"""The ``corners`` pose set of the cycle-by-cycle comparison (``--margins``, ``--bodies``):
+start poses beside the block's north (y 280) and south (y 220) ends, heading east-ish, every
+gait."""
 FRICTIONS = (0.0, 0.25, 0.4, 0.5, 0.6, 0.75, 1.0)
 """``station_friction`` values swept by default."""
 MARGIN_FRICTION = 0.5
@@ -146,6 +158,30 @@ def margin_rules(margins: Sequence[float]) -> dict[str, Envelope]:
     return out
 
 
+def body_rules(bodies: Sequence[tuple[float, float, float]]) -> dict[str, Envelope]:
+    """``slide`` at ``MARGIN_FRICTION`` with each oval body (front, back, side; units), the
+    block always in the way and unseen."""
+    out = {}
+    for front, back, side in bodies:
+        out[f"slide {MARGIN_FRICTION:g}, body {front:g}/{back:g}/{side:g}"] = Envelope(
+            station_stops=STOPS_ALWAYS, station_blocking="slide", station_friction=MARGIN_FRICTION,
+            body_front=front, body_back=back, body_side=side,
+        )  # fmt: skip
+    return out
+
+
+def parse_bodies(text: str) -> list[tuple[float, float, float]]:
+    """``"15/15/12,18/15/12"`` → [(15, 15, 12), (18, 15, 12)]; ``ValueError`` naming a bad one."""
+    out = []
+    for item in text.split(","):
+        parts = item.split("/")
+        if len(parts) != 3:
+            raise ValueError(f"a body is FRONT/BACK/SIDE (units), got {item!r}")
+        front, back, side = (float(v) for v in parts)
+        out.append((front, back, side))
+    return out
+
+
 def cycle_errors(
     table: np.ndarray, poses: Sequence[Pose], gaits: Sequence[int], envelopes: dict[str, Envelope],
     cycles: int = 3, walks: Walks | None = None,
@@ -219,6 +255,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--cycles", type=int, default=3)
     ap.add_argument("--margins", help="station_margin values (units) compared cycle by cycle, "
                     "e.g. 0,1,2,3,4,5 (default: none)")  # fmt: skip
+    ap.add_argument("--bodies", help="oval bodies FRONT/BACK/SIDE (units) compared cycle by "
+                    "cycle, e.g. 15/15/12,18/15/12 (default: none)")  # fmt: skip
     ap.add_argument("--out", type=Path, default=Path("runs/block_contact"))
     args = ap.parse_args(argv)
     try:
@@ -226,25 +264,32 @@ def main(argv: Sequence[str] | None = None) -> int:
         envelopes = rules(frictions)
     except ValueError as exc:
         ap.error(f"--frictions: {exc}")
-    margins = None
-    if args.margins is not None:
+    by_cycle_rules: dict[str, Envelope] = {}
+    if args.margins is not None or args.bodies is not None:
         try:
-            margins = margin_rules([float(m) for m in args.margins.split(",")])
+            by_cycle_rules = margin_rules([float(m) for m in (args.margins or "0").split(",")])
         except ValueError as exc:
             ap.error(f"--margins: {exc}")
+    if args.bodies is not None:
+        try:
+            by_cycle_rules |= body_rules(parse_bodies(args.bodies))
+        except ValueError as exc:
+            ap.error(f"--bodies: {exc}")
     if args.cycles < 1:
         ap.error(f"--cycles must be ≥ 1, got {args.cycles}")
     table = PAPER_TABLE if args.table is None else load_table(args.table).values
+    sets = {**POSE_SETS, "corners": CORNERS} if by_cycle_rules else POSE_SETS
     walks = {name: walk_physics(poses, gaits, args.cycles)
-             for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
+             for name, (poses, gaits) in sets.items()}  # fmt: skip
     results = {name: contact_errors(table, poses, gaits, envelopes, args.cycles, walks[name])
                for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
     doc, md = report(results, args.cycles)
-    if margins is not None:
-        by_cycle = {name: cycle_errors(table, poses, gaits, margins, args.cycles, walks[name])
-                    for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
+    if by_cycle_rules:
+        by_cycle = {name: cycle_errors(table, poses, gaits, by_cycle_rules, args.cycles,
+                                       walks[name])
+                    for name, (poses, gaits) in sets.items()}  # fmt: skip
         doc_c, md_c = report(by_cycle, args.cycles, counted="cycles",
-                             title="Cycle by cycle, every cycle: the block's margin")  # fmt: skip
+                             title="Cycle by cycle, every cycle: the block's reach")  # fmt: skip
         doc["cycle_by_cycle"] = doc_c["sets"]
         md += "\n" + md_c
     write_report(args.out, "block_contact", doc, md)
