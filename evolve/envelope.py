@@ -140,7 +140,9 @@ class Envelope:
     the robot, reaching this far ahead of the centre, ``body_back`` behind it and
     ``body_side`` to each side (``geometry.oval_box_gauge2``): the MuJoCo robot meets the
     block with its docking probes and front feet head-on and with its middle feet (13 cm out)
-    sideways, where the disc is 15 units every way (docs/envelope.md)."""
+    sideways, where the disc is 15 units every way. An oval 20/15/13 predicts the next cycle
+    in front of the block best, but ranks whole runs worse, and one as wide as the robot
+    (15/15/13) no better, so ``default`` keeps the disc (docs/envelope.md)."""
     body_back: float = 0.0
     """[chosen] With ``body_front`` > 0: the footprint's reach behind the centre, units."""
     body_side: float = 0.0
