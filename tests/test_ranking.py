@@ -106,6 +106,60 @@ def test_table_runs_none_is_one_exact_run_and_an_envelope_the_mean_of_its_draws(
     assert np.allclose(got, np.mean(draws, axis=0))
 
 
+def test_table_ends_share_every_start_and_draw_by_end() -> None:
+    """Each genome's end shares count its runs from every start in every draw, by end code."""
+    from evolve.envelope import key_of_test
+    from evolve.interpreter import END_NAMES
+
+    bits = RNG.integers(0, 2, (4, 16, 30), dtype=np.uint8)
+    genomes = [ranking.Genome(str(k), b) for k, b in enumerate(bits)]
+    starts = coverage_starts(np.random.default_rng(2), 6, WorldSettings())
+    got = ranking.table_ends(genomes, starts, table=PAPER_TABLE, envelope=DEFAULT, seed=1,
+                             draws=3, steps=80)  # fmt: skip
+    ends = np.stack([evaluate(bits, starts, table=PAPER_TABLE, mode="coverage", max_steps=80,
+                              envelope=DEFAULT, envelope_key=key_of_test(1, "ranking", d)).end
+                     for d in range(3)], axis=1)  # (G, draws, S)  # fmt: skip
+    assert got.shape == (4, len(END_NAMES))
+    for g in range(4):
+        for code in range(len(END_NAMES)):
+            assert got[g, code] == np.count_nonzero(ends[g] == code) / 18
+    exact = ranking.table_ends(genomes, starts, table=PAPER_TABLE, steps=80)
+    one = evaluate(bits, starts, table=PAPER_TABLE, mode="coverage", max_steps=80).end
+    assert exact[:, 0].tolist() == [np.count_nonzero(e == 0) / 6 for e in one]
+
+
+def test_end_agreement_by_hand() -> None:
+    """Shares of (step limit, kill zone, power empty, branch limit, docked) for 4 genomes of
+    2 populations: the kill zone's shares rise together on both sides (r = 1), power empty
+    only in physics; ends neither side has are left out."""
+    table = np.array([[0.9, 0.1, 0, 0, 0], [0.8, 0.2, 0, 0, 0],
+                      [0.7, 0.3, 0, 0, 0], [0.6, 0.4, 0, 0, 0]])  # fmt: skip
+    physics = np.array([[1.0, 0.0, 0, 0, 0], [0.8, 0.1, 0.1, 0, 0],
+                        [0.7, 0.2, 0.1, 0, 0], [0.4, 0.3, 0.3, 0, 0]])  # fmt: skip
+    got = ranking.end_agreement(table, physics, np.array([0, 0, 1, 1]))
+    assert list(got) == ["step limit", "kill zone", "power empty"]
+    kill = got["kill zone"]
+    assert kill["table"] == pytest.approx(0.25) and kill["physics"] == pytest.approx(0.15)
+    assert kill["r"] == pytest.approx(1.0)
+    assert kill["table_by_population"] == pytest.approx([0.15, 0.35])
+    assert kill["physics_by_population"] == pytest.approx([0.05, 0.25])
+    assert math.isnan(got["power empty"]["r"])  # the table has no spread there
+    # step limit: table 0.9, 0.8, 0.7, 0.6 against physics 1.0, 0.8, 0.7, 0.4
+    assert got["step limit"]["r"] == pytest.approx(np.corrcoef([9, 8, 7, 6], [10, 8, 7, 4])[0, 1])
+
+
+def test_end_shares_of_cells_leave_out_physics_errors() -> None:
+    from servobot.robustness.measure import end_shares
+
+    def run(code):
+        return {"physics": None if code is None else {"end": {"code": code}}}
+
+    cells = [[run(0), run(2), run(None), run(2)], [run(1)]]
+    got = end_shares(cells, "physics")
+    assert got[0].tolist() == pytest.approx([1 / 3, 0, 2 / 3, 0, 0])
+    assert got[1].tolist() == [0, 1, 0, 0, 0]
+
+
 def test_seen_forces_the_block() -> None:
     assert ranking.seen(DEFAULT, True).station_seen_p == 1.0
     assert ranking.seen(DEFAULT, False).station_seen_p == 0.0
@@ -157,6 +211,13 @@ def test_the_measurement_end_to_end_on_a_tiny_case(tmp_path: Path, capsys) -> No
     assert "| top20 | matched world | station-seen |" in (out / "ranking.md").read_text()
     assert set(doc["by_population"]["top20"]) == {"shipped", "station-seen"}
     assert doc["by_population"]["top20"]["shipped"]["populations"] == [0, 1]
+    # 3 steps end every run at the step limit, on both sides
+    for world in ("shipped", "station-seen"):
+        ends = doc["ends"]["top20"][world]
+        assert list(ends) == ["step limit"]
+        assert ends["step limit"]["table"] == ends["step limit"]["physics"] == 1.0
+        assert ends["step limit"]["physics_by_population"] == [1.0, 1.0]
+    assert "| shipped | step limit | 100.0 % | 100.0 % | nan |" in (out / "ranking.md").read_text()
     capsys.readouterr()
     assert measure.main(argv) == 0  # the physics cells are read back
     assert json.loads((out / "ranking.json").read_text()) == doc

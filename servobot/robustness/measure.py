@@ -20,8 +20,10 @@ each world against the envelope with the station block never (``shipped``) or al
 (``station-seen``) seen. Beside the agreement, its ceiling: the best any model reaches
 against one run of a world that varies as the envelope says (``ranking.noise_ceiling``: the
 arm's envelope, ``default`` for ``none``, against one draw of itself, the same genomes and
-starts), and where the agreement comes from (``ranking.population_agreement``: Spearman
-within each population and over the population means, the own world). Writes
+starts), where the agreement comes from (``ranking.population_agreement``: Spearman
+within each population and over the population means, the own world), and how the runs end
+in the own world and in physics (``ranking.end_agreement``: each end's share, per population,
+and how the genomes' shares correlate). Writes
 ``OUT/ranking.json`` and ``OUT/ranking.md``.
 """
 
@@ -39,6 +41,7 @@ import numpy as np
 
 from evolve.codec import expressed, format_chromosome
 from evolve.envelope import DEFAULT, NONE, TRAINING_DEFAULTS, Envelope, load_envelope
+from evolve.interpreter import END_NAMES
 from evolve.table import load_table
 from infra.bounds import check_workers
 from infra.command import Interrupted, command_line, run_command
@@ -49,11 +52,13 @@ from servobot.robustness.matrix import RobustnessSettings, check_reuse, run_matr
 from servobot.robustness.ranking import (
     RankingError,
     agreement,
+    end_agreement,
     generation_bests,
     groups_of,
     noise_ceiling,
     population_agreement,
     seen,
+    table_ends,
     table_runs,
     top_genomes,
 )
@@ -89,6 +94,18 @@ def inner_squares(cells: list[list[dict[str, Any]]], starts: int, side: str) -> 
 def physics_runs(matrix: Path, world: str, names: list[str], starts: int) -> np.ndarray:
     """(G, S) physics inner squares of each genome's cell in ``world`` (NaN: a physics error)."""
     return inner_squares(cell_runs(matrix, world, names), starts, "physics")
+
+
+def end_shares(cells: list[list[dict[str, Any]]], side: str) -> np.ndarray:
+    """(G, len(END_NAMES)) share of each cell's runs on ``side`` that end each way
+    (``evolve.interpreter.END_NAMES`` order; runs without a result there, physics errors,
+    left out)."""
+    out = np.zeros((len(cells), len(END_NAMES)))
+    for g, runs in enumerate(cells):
+        for r in runs:
+            if r[side] is not None:
+                out[g, r[side]["end"]["code"]] += 1
+    return out / np.maximum(out.sum(axis=1, keepdims=True), 1)
 
 
 def _score(tab: dict[str, np.ndarray], phys: dict[str, np.ndarray]) -> dict[str, Any]:
@@ -137,6 +154,19 @@ def _markdown(doc: dict[str, Any]) -> str:
             means = ", ".join(f"{v:.1f}" for v in a["physics_means"])
             lines.append(f"| {w} | {within} | {a['within_spearman_mean']:.2f} | "
                          f"{a['of_means_spearman']:.2f} | {means} |")  # fmt: skip
+    for sample, by in doc.get("ends", {}).items():
+        lines += ["", f"## {sample}: how runs end (own world against physics)", "",
+                  "Share of the runs ending each way; r: Pearson over the genomes' shares.", "",
+                  "| physics world | end | table | physics | r | table per population | "
+                  "physics per population |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+        for w, ends in by.items():
+            for name, e in ends.items():
+                t, p = (", ".join(f"{100 * v:.0f}" for v in e[k])
+                        for k in ("table_by_population", "physics_by_population"))  # fmt: skip
+                lines.append(
+                    f"| {w} | {name} | {100 * e['table']:.1f} % | "
+                    f"{100 * e['physics']:.1f} % | {e['r']:.2f} | {t} | {p} |"
+                )
     if doc.get("tune"):
         lines += ["", "## Envelope scales scored on these physics runs (best 10)", "",
                   "| scatter | bias | reach | stops | Spearman (mean of worlds) | mean abs Δ |",
@@ -232,7 +262,9 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     names = [Path(c["file"]).stem for c in doc["table_per_chromosome"]]
     if names != reps:
         raise RankingError(f"{matrix}: holds other genomes than this sample; use another --out")
-    phys_all = {w: physics_runs(matrix, w, runs_as, a.starts) for w in WORLDS}
+    cells = {w: cell_runs(matrix, w, runs_as) for w in WORLDS}
+    phys_all = {w: inner_squares(c, a.starts, "physics") for w, c in cells.items()}
+    ends_all = {w: end_shares(c, "physics") for w, c in cells.items()}
     out: dict[str, Any] = {"run": str(a.run), "envelope_name": a.envelope,
                            "envelope": envelope.to_dict(), "genomes": len(genomes),
                            "behaviours": len(reps), "starts": a.starts,
@@ -255,6 +287,11 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
         groups = groups_of([g.label for g in gs])
         out.setdefault("by_population", {})[sample] = {
             w: population_agreement(own, phys[w], groups) for w in WORLDS
+        }
+        own_ends = table_ends(gs, starts, table=table, envelope=envelope, seed=a.seed,
+                              draws=a.draws, steps=a.steps)  # fmt: skip
+        out.setdefault("ends", {})[sample] = {
+            w: end_agreement(own_ends, ends_all[w][rows], groups) for w in WORLDS
         }
         out["agreement"][sample] = {
             "own world": {w: agreement(own, phys[w]) for w in WORLDS},

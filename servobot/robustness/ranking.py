@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,7 +22,8 @@ from scipy.stats import spearmanr
 
 from evolve.codec import SECTION_GENES, read_chromosome
 from evolve.envelope import NONE, Envelope, key_of_test
-from evolve.evaluation import evaluate
+from evolve.evaluation import Evaluation, evaluate
+from evolve.interpreter import END_NAMES
 from infra.errors import InputError
 
 TOP_FRACTION = 0.2
@@ -100,6 +102,18 @@ def generation_bests(run: Path) -> list[Genome]:
     return out
 
 
+def _evaluations(
+    genomes: list[Genome], starts: np.ndarray, *, table, envelope: Envelope, seed: int,
+    draws: int, steps: int | None,
+) -> Iterator[Evaluation]:
+    """The table world's coverage runs of ``genomes`` from ``starts``: one ``Evaluation`` for
+    ``NONE``, else one per draw of the envelope (keys ``key_of_test(seed, "ranking", d)``)."""
+    bits = np.stack([g.bits for g in genomes])
+    for d in range(1 if envelope == NONE else draws):
+        yield evaluate(bits, starts, table=table, mode="coverage", max_steps=steps,
+                       envelope=envelope, envelope_key=key_of_test(seed, "ranking", d))  # fmt: skip
+
+
 def table_runs(
     genomes: list[Genome],
     starts: np.ndarray,
@@ -112,14 +126,32 @@ def table_runs(
 ) -> np.ndarray:
     """(G, S) inner squares per genome and start in the table world under ``envelope``: one
     run for ``NONE``, else the mean of ``draws`` draws of the envelope."""
-    bits = np.stack([g.bits for g in genomes])
-    n = 1 if envelope == NONE else draws
     total = np.zeros((len(genomes), len(starts)))
-    for d in range(n):
-        ev = evaluate(bits, starts, table=table, mode="coverage", max_steps=steps,
-                      envelope=envelope, envelope_key=key_of_test(seed, "ranking", d))  # fmt: skip
+    n = 0
+    for ev in _evaluations(genomes, starts, table=table, envelope=envelope, seed=seed,
+                           draws=draws, steps=steps):  # fmt: skip
         total += ev.inner_squares
+        n += 1
     return total / n
+
+
+def table_ends(
+    genomes: list[Genome],
+    starts: np.ndarray,
+    *,
+    table,
+    envelope: Envelope = NONE,
+    seed: int = 0,
+    draws: int = 16,
+    steps: int | None = None,
+) -> np.ndarray:
+    """(G, len(END_NAMES)) share of each genome's table runs (every start and draw of
+    ``table_runs``) that end each way (``evolve.interpreter.END_NAMES`` order)."""
+    counts = np.zeros((len(genomes), len(END_NAMES)))
+    for ev in _evaluations(genomes, starts, table=table, envelope=envelope, seed=seed,
+                           draws=draws, steps=steps):  # fmt: skip
+        counts += (ev.end[:, :, None] == np.arange(len(END_NAMES))).sum(axis=1)
+    return counts / counts.sum(axis=1, keepdims=True)
 
 
 def noise_ceiling(
@@ -195,6 +227,30 @@ def population_agreement(
                                  np.array([p[groups == k].mean() for k in keys])),
         "physics_means": [float(p[groups == k].mean()) for k in keys],
     }  # fmt: skip
+
+
+def end_agreement(
+    table: np.ndarray, physics: np.ndarray, groups: np.ndarray
+) -> dict[str, dict[str, Any]]:
+    """How the table world predicts the way physics' runs end, from (G, len(END_NAMES)) end
+    shares of the same genomes (``table_ends`` and the physics runs'): per end that either side
+    has, each side's mean share, Pearson's r of the genomes' shares (NaN without spread on
+    either side) and each population's mean share of each side (``groups``)."""
+    keys = np.unique(groups)
+    out = {}
+    for code, name in enumerate(END_NAMES):
+        t, p = table[:, code], physics[:, code]
+        if not (t.any() or p.any()):
+            continue
+        spread = np.ptp(t) > 0 and np.ptp(p) > 0
+        out[name] = {
+            "table": float(t.mean()),
+            "physics": float(p.mean()),
+            "r": float(np.corrcoef(t, p)[0, 1]) if spread else float("nan"),
+            "table_by_population": [float(t[groups == k].mean()) for k in keys],
+            "physics_by_population": [float(p[groups == k].mean()) for k in keys],
+        }
+    return out
 
 
 def agreement(table: np.ndarray, physics: np.ndarray) -> dict[str, float]:
