@@ -103,8 +103,14 @@ def generation_bests(run: Path) -> list[Genome]:
 
 
 def _evaluations(
-    genomes: list[Genome], starts: np.ndarray, *, table, envelope: Envelope, seed: int,
-    draws: int, steps: int | None,
+    genomes: list[Genome],
+    starts: np.ndarray,
+    *,
+    table,
+    envelope: Envelope,
+    seed: int,
+    draws: int,
+    steps: int | None,
 ) -> Iterator[Evaluation]:
     """The table world's coverage runs of ``genomes`` from ``starts``: one ``Evaluation`` for
     ``NONE``, else one per draw of the envelope (keys ``key_of_test(seed, "ranking", d)``)."""
