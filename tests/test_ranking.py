@@ -106,7 +106,7 @@ def test_table_runs_none_is_one_exact_run_and_an_envelope_the_mean_of_its_draws(
     assert np.allclose(got, np.mean(draws, axis=0))
 
 
-def test_table_ends_share_every_start_and_draw_by_end() -> None:
+def test_table_end_shares_count_every_start_and_draw_by_end() -> None:
     """Each genome's end shares count its runs from every start in every draw, by end code."""
     from evolve.envelope import key_of_test
     from evolve.interpreter import END_NAMES
@@ -114,8 +114,10 @@ def test_table_ends_share_every_start_and_draw_by_end() -> None:
     bits = RNG.integers(0, 2, (4, 16, 30), dtype=np.uint8)
     genomes = [ranking.Genome(str(k), b) for k, b in enumerate(bits)]
     starts = coverage_starts(np.random.default_rng(2), 6, WorldSettings())
-    got = ranking.table_ends(genomes, starts, table=PAPER_TABLE, envelope=DEFAULT, seed=1,
-                             draws=3, steps=80)  # fmt: skip
+    runs = ranking.table_evaluations(
+        genomes, starts, table=PAPER_TABLE, envelope=DEFAULT, seed=1, draws=3, steps=80
+    )
+    got = ranking.table_end_shares(runs)
     ends = np.stack([evaluate(bits, starts, table=PAPER_TABLE, mode="coverage", max_steps=80,
                               envelope=DEFAULT, envelope_key=key_of_test(1, "ranking", d)).end
                      for d in range(3)], axis=1)  # (G, draws, S)  # fmt: skip
@@ -123,7 +125,9 @@ def test_table_ends_share_every_start_and_draw_by_end() -> None:
     for g in range(4):
         for code in range(len(END_NAMES)):
             assert got[g, code] == np.count_nonzero(ends[g] == code) / 18
-    exact = ranking.table_ends(genomes, starts, table=PAPER_TABLE, steps=80)
+    exact = ranking.table_end_shares(
+        ranking.table_evaluations(genomes, starts, table=PAPER_TABLE, steps=80)
+    )
     one = evaluate(bits, starts, table=PAPER_TABLE, mode="coverage", max_steps=80).end
     assert exact[:, 0].tolist() == [np.count_nonzero(e == 0) / 6 for e in one]
 

@@ -55,10 +55,12 @@ from servobot.robustness.ranking import (
     end_agreement,
     generation_bests,
     groups_of,
+    mean_inner_squares,
     noise_ceiling,
     population_agreement,
     seen,
-    table_ends,
+    table_end_shares,
+    table_evaluations,
     table_runs,
     top_genomes,
 )
@@ -276,9 +278,9 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
         rows = slice(offset, offset + len(gs))
         offset += len(gs)
         phys = {w: v[rows] for w, v in phys_all.items()}
-        own = table_runs(
-            gs, starts, table=table, envelope=envelope, seed=a.seed, draws=a.draws, steps=a.steps
-        )
+        own_runs = table_evaluations(gs, starts, table=table, envelope=envelope, seed=a.seed,
+                                     draws=a.draws, steps=a.steps)  # fmt: skip
+        own = mean_inner_squares(own_runs)
         exact = own if envelope == NONE else table_runs(gs, starts, table=table, steps=a.steps)
         varied = DEFAULT if envelope == NONE else envelope
         matched = {w: table_runs(gs, starts, table=table, envelope=seen(envelope, w != WORLDS[0]),
@@ -288,8 +290,7 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
         out.setdefault("by_population", {})[sample] = {
             w: population_agreement(own, phys[w], groups) for w in WORLDS
         }
-        own_ends = table_ends(gs, starts, table=table, envelope=envelope, seed=a.seed,
-                              draws=a.draws, steps=a.steps)  # fmt: skip
+        own_ends = table_end_shares(own_runs)
         out.setdefault("ends", {})[sample] = {
             w: end_agreement(own_ends, ends_all[w][rows], groups) for w in WORLDS
         }

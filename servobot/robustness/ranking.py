@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -102,22 +101,39 @@ def generation_bests(run: Path) -> list[Genome]:
     return out
 
 
-def _evaluations(
+def table_evaluations(
     genomes: list[Genome],
     starts: np.ndarray,
     *,
     table,
-    envelope: Envelope,
-    seed: int,
-    draws: int,
-    steps: int | None,
-) -> Iterator[Evaluation]:
-    """The table world's coverage runs of ``genomes`` from ``starts``: one ``Evaluation`` for
-    ``NONE``, else one per draw of the envelope (keys ``key_of_test(seed, "ranking", d)``)."""
+    envelope: Envelope = NONE,
+    seed: int = 0,
+    draws: int = 16,
+    steps: int | None = None,
+) -> list[Evaluation]:
+    """The table world's coverage runs of ``genomes`` from ``starts`` under ``envelope``: one
+    ``Evaluation`` for ``NONE``, else one per draw (keys ``key_of_test(seed, "ranking", d)``)."""
     bits = np.stack([g.bits for g in genomes])
-    for d in range(1 if envelope == NONE else draws):
-        yield evaluate(bits, starts, table=table, mode="coverage", max_steps=steps,
-                       envelope=envelope, envelope_key=key_of_test(seed, "ranking", d))  # fmt: skip
+    return [evaluate(bits, starts, table=table, mode="coverage", max_steps=steps,
+                     envelope=envelope, envelope_key=key_of_test(seed, "ranking", d))
+            for d in range(1 if envelope == NONE else draws)]  # fmt: skip
+
+
+def mean_inner_squares(evaluations: list[Evaluation]) -> np.ndarray:
+    """(G, S) inner squares per genome and start, the mean over ``evaluations`` (draws)."""
+    total = np.zeros(evaluations[0].inner_squares.shape)
+    for ev in evaluations:
+        total += ev.inner_squares
+    return total / len(evaluations)
+
+
+def table_end_shares(evaluations: list[Evaluation]) -> np.ndarray:
+    """(G, len(END_NAMES)) share of each genome's runs in ``evaluations`` (every start and
+    draw) that end each way (``evolve.interpreter.END_NAMES`` order)."""
+    counts = np.zeros((evaluations[0].end.shape[0], len(END_NAMES)))
+    for ev in evaluations:
+        counts += (ev.end[:, :, None] == np.arange(len(END_NAMES))).sum(axis=1)
+    return counts / counts.sum(axis=1, keepdims=True)
 
 
 def table_runs(
@@ -131,33 +147,10 @@ def table_runs(
     steps: int | None = None,
 ) -> np.ndarray:
     """(G, S) inner squares per genome and start in the table world under ``envelope``: one
-    run for ``NONE``, else the mean of ``draws`` draws of the envelope."""
-    total = np.zeros((len(genomes), len(starts)))
-    n = 0
-    for ev in _evaluations(genomes, starts, table=table, envelope=envelope, seed=seed,
-                           draws=draws, steps=steps):  # fmt: skip
-        total += ev.inner_squares
-        n += 1
-    return total / n
-
-
-def table_ends(
-    genomes: list[Genome],
-    starts: np.ndarray,
-    *,
-    table,
-    envelope: Envelope = NONE,
-    seed: int = 0,
-    draws: int = 16,
-    steps: int | None = None,
-) -> np.ndarray:
-    """(G, len(END_NAMES)) share of each genome's table runs (every start and draw of
-    ``table_runs``) that end each way (``evolve.interpreter.END_NAMES`` order)."""
-    counts = np.zeros((len(genomes), len(END_NAMES)))
-    for ev in _evaluations(genomes, starts, table=table, envelope=envelope, seed=seed,
-                           draws=draws, steps=steps):  # fmt: skip
-        counts += (ev.end[:, :, None] == np.arange(len(END_NAMES))).sum(axis=1)
-    return counts / counts.sum(axis=1, keepdims=True)
+    run for ``NONE``, else the mean of ``draws`` draws of the envelope
+    (``table_evaluations``)."""
+    return mean_inner_squares(table_evaluations(genomes, starts, table=table, envelope=envelope,
+                                                seed=seed, draws=draws, steps=steps))  # fmt: skip
 
 
 def noise_ceiling(
@@ -239,9 +232,9 @@ def end_agreement(
     table: np.ndarray, physics: np.ndarray, groups: np.ndarray
 ) -> dict[str, dict[str, Any]]:
     """How the table world predicts the way physics' runs end, from (G, len(END_NAMES)) end
-    shares of the same genomes (``table_ends`` and the physics runs'): per end that either side
-    has, each side's mean share, Pearson's r of the genomes' shares (NaN without spread on
-    either side) and each population's mean share of each side (``groups``)."""
+    shares of the same genomes (``table_end_shares`` and the physics runs'): per end that
+    either side has, each side's mean share, Pearson's r of the genomes' shares (NaN without
+    spread on either side) and each population's mean share of each side (``groups``)."""
     keys = np.unique(groups)
     out = {}
     for code, name in enumerate(END_NAMES):
