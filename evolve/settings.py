@@ -435,6 +435,15 @@ class NavigationSettings:
     until the first paid cycle: a section whose first low-power test branches on that bit can
     dock from 4.0 V and fail from every hand-off. A value below ``low_power_v`` (3.99) trains
     and chooses the section as it will run (docs/envelope.md)."""
+    dock_heading_tol_deg: float | None = None
+    """Docking tolerance of every run of the stage (training, selection, test): the heading
+    within ± this of ``WorldSettings.dock_heading_deg``, degrees; None:
+    ``WorldSettings.dock_heading_tol_deg``, 30° as SPEC §3 writes [chosen]. Physics' robot loses
+    5–20° of a rotation in place against the station's face, so a section that reaches the
+    docking box a few degrees inside the band in the table world can turn short of it in
+    MuJoCo and push there until its store is empty. A stricter band (20°) trains sections that
+    end their approach squarer to the station; the section then runs in the world of SPEC §3,
+    where the summary reports it too (``spec_dock_success``; docs/envelope.md)."""
 
     def __post_init__(self) -> None:
         if self.candidates not in ("saved", "final"):
@@ -455,6 +464,10 @@ class NavigationSettings:
         v = self.start_power_v
         if v is not None and not (is_finite_number(v) and v > 0.0):
             raise SettingsError(f"start_power_v must be a voltage > 0 or None, got {v!r}")
+        tol = self.dock_heading_tol_deg
+        if tol is not None and not (is_finite_number(tol) and 0.0 < tol <= 180.0):
+            raise SettingsError(f"dock_heading_tol_deg must be an angle in (0, 180] degrees or "
+                                f"None, got {tol!r}")  # fmt: skip
 
     def ramp_generations(self, generations: int) -> int:
         """Generations over which the training start region grows in a stage of
@@ -462,18 +475,20 @@ class NavigationSettings:
         return round(self.start_ramp_fraction * generations)
 
     def to_dict(self) -> dict[str, Any]:
-        """The fields; ``start_power_v`` only when set (folders made before it resume)."""
+        """The fields; ``start_power_v`` and ``dock_heading_tol_deg`` only when set (folders
+        made before them resume)."""
         doc = dataclasses.asdict(self)
-        if self.start_power_v is None:
-            del doc["start_power_v"]
+        for name in ("start_power_v", "dock_heading_tol_deg"):
+            if doc[name] is None:
+                del doc[name]
         return doc
 
     def world(self, world: WorldSettings) -> WorldSettings:
-        """``world`` as the stage's runs see it: its start power replaced by ``start_power_v``
-        when set."""
-        if self.start_power_v is None:
-            return world
-        return dataclasses.replace(world, start_power_v=float(self.start_power_v))
+        """``world`` as the stage's runs see it: its start power and docking tolerance replaced
+        by ``start_power_v`` and ``dock_heading_tol_deg`` where set."""
+        changes = {name: float(v) for name in ("start_power_v", "dock_heading_tol_deg")
+                   if (v := getattr(self, name)) is not None}  # fmt: skip
+        return dataclasses.replace(world, **changes) if changes else world
 
 
 NAVIGATION_STARTS_PER_GENERATION = 40

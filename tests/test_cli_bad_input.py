@@ -166,6 +166,8 @@ CASES = {
         (["navigation", "--robots", "3"], "--robots is an option of the colony stage"),
         (["coverage", "--nav-start-power", "3.99"], "--nav-start-power is an option of the nav"),
         (["navigation", "--nav-start-power", "0"], "start_power_v must be a voltage > 0"),
+        (["navigation", "--nav-dock-tol", "0"], "dock_heading_tol_deg must be an angle"),
+        (["coverage", "--nav-dock-tol", "20"], "--nav-dock-tol is an option of the navigation"),
         (["colony", "--navigation", "{binary}"], "binary.bin: holds binary data"),
     ],
     "anytime": [

@@ -66,6 +66,9 @@ def test_navigation_settings_refuse_what_cannot_run():
         {"start_ramp_fraction": 1.5},
         {"start_power_v": 0.0},
         {"start_power_v": float("nan")},
+        {"dock_heading_tol_deg": 0.0},
+        {"dock_heading_tol_deg": 181.0},
+        {"dock_heading_tol_deg": float("inf")},
     ):
         with pytest.raises(SettingsError, match=next(iter(bad))):
             NavigationSettings(**bad)
@@ -140,6 +143,39 @@ def test_a_stage_at_the_hand_off_power_runs_and_records_it(tiny_navigation, tmp_
     sel = navigation_starts(stages.stage_rng(ga.seed, "navigation", 1), 200, WORLD)
     ends = evaluate(best, sel, table=TABLE, mode="navigation", start_power=3.99).end
     assert np.mean(ends == END_NAMES.index("docked")) == got["selection"]["dock_rate"]
+
+
+def test_a_stricter_docking_band_is_the_stages_world_and_its_section_is_reported_in_the_specs(
+    tiny_navigation, tmp_path,
+):  # fmt: skip
+    """``dock_heading_tol_deg``: every run of the stage docks only within the stricter band
+    (hand-worked: heading 65° at the dock point docks within 30°, not within 20°); the test
+    figure is the band's and ``spec_dock_success`` the same test starts within SPEC §3's 30°."""
+    from evolve.evaluation import evaluate
+    from evolve.geometry import is_docked
+    from evolve.interpreter import END_NAMES
+
+    _, ga, nav, summary = tiny_navigation
+    strict = dataclasses.replace(nav, dock_heading_tol_deg=20.0)
+    world = strict.world(WORLD)
+    assert (world.dock_heading_tol_deg, world.start_power_v) == (20.0, WORLD.start_power_v)
+    assert is_docked(465, 250, 65, WORLD) and not is_docked(465, 250, 65, world)
+    assert is_docked(465, 250, 75, world) and is_docked(465, 250, 105, world)
+    assert "spec_dock_success" not in summary
+    got = stages.run_navigation(tmp_path, table=TABLE, ga=ga, navigation=strict)
+    doc = json.loads((tmp_path / "navigation" / "settings.json").read_text())
+    assert doc["WorldSettings"]["dock_heading_tol_deg"] == 20.0
+    assert doc["NavigationSettings"]["dock_heading_tol_deg"] == 20.0
+    assert "dock_heading_tol_deg" not in summary["settings"]["NavigationSettings"]
+    # the test starts, drawn as the stage draws them, in each band
+    seq = stages.stage_seeds(ga.seed, "navigation", ga.populations)[0]
+    starts = navigation_starts(np.random.Generator(np.random.PCG64(seq)), ga.test_starts, WORLD)
+    best = read_chromosome(tmp_path / "navigation" / "best.txt")[None]
+    docked = END_NAMES.index("docked")
+    rates = [np.mean(evaluate(best, starts, table=TABLE, mode="navigation", settings=w).end
+                     == docked) for w in (world, WORLD)]  # fmt: skip
+    assert [got["dock_success"], got["spec_dock_success"]] == rates
+    assert rates[0] <= rates[1]  # a robot that docks within 20° docks within 30°
 
 
 # --------------------------------------------------------------------------- curriculum
