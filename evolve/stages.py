@@ -611,10 +611,6 @@ def run_coverage(
     starts, all finalists and per population; every hand-off in ``handoffs.csv``),
     ``wall_s``, ``settings``.
 
-    With ``navigation.dock_heading_tol_deg`` set, every run of the stage docks within that
-    band; ``spec_dock_success`` is then the chosen section's rate on the same test starts
-    (world of §3) docking within ``world``'s band (SPEC §3's 30°), the band it will run in.
-
     ``envelope`` (SPEC §9): the populations evolve in it; Figure 9 is also measured in it on
     the same test starts (key ``key_of_test(seed, "figure9")``): ``envelope_figure9_*``,
     ``envelope_final_*`` beside the keys above (the world of §3), and ``envelope`` (its
