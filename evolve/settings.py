@@ -397,6 +397,11 @@ class GASettings:
         return dataclasses.asdict(self)
 
 
+NAVIGATION_WORLD_FIELDS = ("start_power_v", "dock_heading_tol_deg")
+"""``NavigationSettings`` fields that, when set, replace the ``WorldSettings`` field of the same
+name in every run of the stage (``NavigationSettings.world``); None keeps the world's."""
+
+
 @dataclass(frozen=True)
 class NavigationSettings:
     """How the navigation stage picks its final section (SPEC §6: how the section is chosen
@@ -478,7 +483,7 @@ class NavigationSettings:
         """The fields; ``start_power_v`` and ``dock_heading_tol_deg`` only when set (folders
         made before them resume)."""
         doc = dataclasses.asdict(self)
-        for name in ("start_power_v", "dock_heading_tol_deg"):
+        for name in NAVIGATION_WORLD_FIELDS:
             if doc[name] is None:
                 del doc[name]
         return doc
@@ -486,7 +491,7 @@ class NavigationSettings:
     def world(self, world: WorldSettings) -> WorldSettings:
         """``world`` as the stage's runs see it: its start power and docking tolerance replaced
         by ``start_power_v`` and ``dock_heading_tol_deg`` where set."""
-        changes = {name: float(v) for name in ("start_power_v", "dock_heading_tol_deg")
+        changes = {name: float(v) for name in NAVIGATION_WORLD_FIELDS
                    if (v := getattr(self, name)) is not None}  # fmt: skip
         return dataclasses.replace(world, **changes) if changes else world
 
