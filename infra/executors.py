@@ -186,9 +186,10 @@ def _call_announced(fn: Callable[[Any], Any], item: Any, index: int) -> Outcome:
 class ProcessExecutor:
     """Runs items in a pool of ``workers`` processes (``spawn`` start method; None = one per
     core). A worker that dies breaks the whole pool; every item the pool left unfinished is
-    then rerun alone in a fresh one-process pool — once if it had started (its worker may be
-    the one that died), up to twice if it had not — so only an item that kills its process
-    twice is ``Failed``.
+    then rerun alone in a fresh one-process pool — once if it was the only unfinished item
+    that had started (its worker is the one that died), up to twice otherwise (the pool's
+    break may have killed a started item before it got far) — so only an item that kills its
+    process twice is ``Failed``.
     """
 
     def __init__(self, workers: int | None = None) -> None:
@@ -219,8 +220,10 @@ class ProcessExecutor:
                         broken.append(futures[fut])
         while not started.empty():
             ran.add(started.get())
+        started_unfinished = [i for i in broken if i in ran]
         for i in sorted(broken):
-            yield i, _run_alone(fn, items[i], ctx, tries=1 if i in ran else 2)
+            tries = 1 if started_unfinished == [i] else 2
+            yield i, _run_alone(fn, items[i], ctx, tries=tries)
 
 
 def _run_alone(fn: Callable[[Any], Any], item: Any, ctx: Any, tries: int) -> Outcome:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -156,6 +157,36 @@ def test_a_dying_worker_is_retried_once_then_failed(executors, tmp_path, name):
     assert isinstance(out[3], Failed) and out[3].message == "ValueError: three is bad"
     assert out[5] == Ok(25)  # died once, the retry succeeded
     assert (tmp_path / "died_5").exists()
+
+
+def _die_beside_a_started_run(item: tuple[int, str]) -> int:
+    """0: waits until run 1 has started, then its worker dies (the pool breaks and kills run
+    1's worker mid-run); 1: dies on its first try that gets past a 5 s pause (a marker file
+    remembers), so a break during the pause is no try of its own."""
+    x, folder = item
+    d = Path(folder)
+    if x == 0:
+        deadline = time.monotonic() + 60
+        while not (d / "started_1").exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        os._exit(3)
+    (d / "started_1").touch()
+    if not (d / "died_1").exists():
+        time.sleep(5)
+        (d / "died_1").touch()
+        os._exit(3)
+    return 1
+
+
+def test_a_run_killed_by_another_runs_death_keeps_both_retries(tmp_path):
+    """Two runs had started when the pool broke: which worker died is unknown, so each gets
+    two tries alone; run 1, killed mid-run by run 0's death, then dies once on its own and
+    succeeds on its retry (it was recorded as a worker death when it had one try)."""
+    out = run_in_order(ProcessExecutor(2), _die_beside_a_started_run,
+                       [(0, str(tmp_path)), (1, str(tmp_path))])  # fmt: skip
+    assert out[0] == Failed(WORKER_DIED)
+    assert out[1] == Ok(1)
+    assert (tmp_path / "died_1").exists()
 
 
 def test_serial_confines_a_raise_to_its_item():
