@@ -487,17 +487,17 @@ def _navigation_summary(
     chosen_k, chosen_g, chosen = cands[c]
     finals = np.stack([r.best for r in results])
     tested = np.concatenate([chosen[None], finals])
+    worlds, dock_key = both_worlds(stage), key_of_test(ga.seed, "docking")
     stats = {
-        prefix: _dock_stats(tested, test_starts, st, table, world,
-                            key_of_test(ga.seed, "docking"))
-        for prefix, st in both_worlds(stage)
+        prefix: _dock_stats(tested, test_starts, st, table, world, dock_key)
+        for prefix, st in worlds
     }  # fmt: skip
     fit, dock, steps, _ = stats[""]
     spec = {}
     if world.dock_heading_tol_deg != spec_tol_deg:
         band = dataclasses.replace(world, dock_heading_tol_deg=spec_tol_deg)
-        _, spec_dock, _, _ = _dock_stats(chosen[None], test_starts, both_worlds(stage)[0][1],
-                                         table, band, key_of_test(ga.seed, "docking"))  # fmt: skip
+        _, spec_dock, _, _ = _dock_stats(chosen[None], test_starts, worlds[0][1], table, band,
+                                         dock_key)  # fmt: skip
         spec = {"spec_dock_success": float(spec_dock[0])}
     per_pop = []
     for j, r in enumerate(results, start=1):
