@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from evolve.codec import write_chromosome
+from evolve.codec import SECTION_GENES, read_chromosome, write_chromosome
 from evolve.envelope import NONE, Envelope
 from evolve.interpreter import END_NAMES
 from evolve.population import Stage, StageError, save_generations, stage_seeds
@@ -94,23 +94,64 @@ def colony_stage_fitness(
 
 
 def colony_stage(
-    world: WorldSettings, colony: ColonySettings, navigation: np.ndarray, envelope: Envelope = NONE
-) -> Stage:
+    world: WorldSettings, colony: ColonySettings, navigation: np.ndarray, envelope: Envelope = NONE,
+    coverage: np.ndarray | None = None,
+) -> Stage:  # fmt: skip
     """The colony's ``Stage``: coverage mode, colony starts, ``colony.fitness`` as run fitness
-    (default the colony squares), in ``envelope``."""
+    (default the colony squares), in ``envelope``. It evolves coverage sections under the
+    fixed ``navigation`` section, or (``colony.sections = "navigation"``) navigation sections
+    starting as ``navigation``, population k's under the fixed coverage section
+    ``coverage[k]`` ((K, 8, 30) bits)."""
     nav = _check_navigation(navigation)
     check_capacity(world, colony)
+    learn_navigation = colony.sections == "navigation"
+    if learn_navigation != (coverage is not None):
+        raise StageError(
+            "coverage sections are given exactly when the colony stage learns navigation "
+            "(ColonySettings.sections 'navigation', --coverage-from)"
+        )
+    if coverage is not None:
+        coverage = np.asarray(coverage)
+        bits = np.isin(coverage, (0, 1)).all()
+        if coverage.ndim != 3 or coverage.shape[1:] != nav.shape or not bits:
+            raise StageError(
+                f"coverage sections must be (populations, 8, 30) bits, got {coverage.shape}"
+            )
+        coverage = np.ascontiguousarray(coverage, dtype=np.uint8)
     return Stage(
         "colony",
         "coverage",
         world.coverage_steps,
         functools.partial(colony_starts, colony=colony),
         functools.partial(colony_stage_fitness, colony=colony),
-        nav,
+        None if learn_navigation else nav,
         evaluate=functools.partial(_evaluate_colony, colony=colony),
         extra_settings=(colony,),
         envelope=envelope,
+        coverage=coverage,
+        initial=nav if learn_navigation else None,
     )
+
+
+def finalists_coverage(run: Path, populations: int) -> np.ndarray:
+    """(K, 8, 30): the coverage sections (genes 0–7) of a finished colony run's finalists
+    ``run/colony/best_pop{k}.txt``, k < ``populations``: where ``--coverage-from`` takes the
+    fixed sections of a colony stage that learns navigation. ``StageError`` naming a missing
+    file or one that is not a whole chromosome."""
+    out = []
+    for k in range(populations):
+        path = Path(run) / "colony" / f"best_pop{k}.txt"
+        if not path.exists():
+            raise StageError(
+                f"{path}: no such file; --coverage-from needs a finished shared colony run "
+                f"('servobot evolve colony') of {populations} populations"
+            )
+        bits = read_chromosome(path)
+        if bits.shape[0] != 2 * SECTION_GENES:
+            raise StageError(f"{path}: {bits.shape[0]} genes, but --coverage-from takes the "
+                             "coverage section of a 16-gene colony finalist")  # fmt: skip
+        out.append(bits[:SECTION_GENES])
+    return np.stack(out).astype(np.uint8)
 
 
 def figure10_starts(world: WorldSettings, colony: ColonySettings) -> np.ndarray:
@@ -127,6 +168,7 @@ def run_colony_stage(
     world: WorldSettings = DEFAULT_WORLD,
     colony: ColonySettings = DEFAULT_COLONY,
     team_from: np.ndarray | None = None,
+    coverage: np.ndarray | None = None,
     **options: Unpack[StageOptions],
 ) -> dict[str, Any]:
     """Colony stage (SPEC §7) into ``out/colony``; returns the summary (also
@@ -149,10 +191,19 @@ def run_colony_stage(
     every population starting as a copy of row t (index 0 its partners; e.g. a shared run's
     final populations, ``evolve.coevolution.shared_populations``), recorded in
     ``settings.json`` by its SHA-256; None: random populations.
+
+    ``coverage`` (``colony.sections = "navigation"`` only): (``ga.populations``, 8, 30) fixed
+    coverage sections, population k's robots carrying row k (e.g. a shared run's finalists,
+    ``finalists_coverage``); every individual of generation 0 is the ``navigation`` section,
+    and the stage evolves it in the colony. Its saved bests and finalists are navigation
+    sections behind those coverage sections; Figure 9's generation 0 is the colony the
+    coverage sections came from (the same colony test starts at the same seed).
     """
     folder = Path(out) / "colony"
     run = StageRun(**options)
-    stage = colony_stage(world, colony, navigation, run.envelope)
+    if coverage is not None and len(coverage) != ga.populations:
+        raise StageError(f"{len(coverage)} coverage sections for {ga.populations} populations")
+    stage = colony_stage(world, colony, navigation, run.envelope, coverage)
     extra = None
     if team_from is not None:
         from evolve.coevolution import check_team_from
@@ -180,7 +231,8 @@ def _colony(
         )
         fig9 = figure9_both(folder, stage, table, world, gens, ga.populations, test_starts,
                             ga.seed)  # fmt: skip
-        finals = np.stack([stage.genomes(res.best[None])[0] for res in results])
+        finals = np.stack([stage.for_population(k).genomes(res.best[None])[0]
+                           for k, res in enumerate(results)])  # fmt: skip
     inner = fig9[""][0]
     _write_figure9(folder, gens, fig9, stage.envelope)
     r = colony.robots
@@ -192,7 +244,7 @@ def _colony(
     fig10 = []
     start = figure10_starts(world, colony)
     for k, full in enumerate(finals):
-        _write_finalist(folder, k, full, ga, table, world, inner[k, -1])
+        _write_finalist(folder, k, full, ga, table, world, inner[k, -1], colony.sections)
         fig = figures.colony_figure10(
             folder / f"figure10_pop{k}.png", full, table=table, world=world, colony=colony,
             starts=start, title=f"population {k}",
@@ -243,13 +295,16 @@ def _evolve_teams(
 
 def _write_finalist(
     folder: Path, k: int, full: np.ndarray, ga: GASettings, table: GaitTable,
-    world: WorldSettings, inner: float,
+    world: WorldSettings, inner: float, colony_sections: str,
 ) -> None:  # fmt: skip
     """``best_pop{k}.txt``, or a team's ``best_pop{k}_robot{r}.txt`` (``full``: (16, 30) or
-    (R, 16, 30))."""
+    (R, 16, 30)); ``colony_sections``: what the stage learned (``ColonySettings.sections``)."""
     test = f"Figure 9 test {inner:.1f}% of the {world.inner_square_count} inner squares"
     if full.ndim == 2:
-        extra = f"16 genes: coverage section (learned as a colony) + navigation (fixed); {test}"
+        learned = ("coverage section (fixed) + navigation (learned as a colony)"
+                   if colony_sections == "navigation"
+                   else "coverage section (learned as a colony) + navigation (fixed)")  # fmt: skip
+        extra = f"16 genes: {learned}; {test}"
         write_chromosome(
             folder / f"best_pop{k}.txt", full, _provenance("colony", k, ga, table, extra)
         )
@@ -327,5 +382,6 @@ __all__ = [
     "colony_stage_fitness",
     "figure10_starts",
     "final_test",
+    "finalists_coverage",
     "run_colony_stage",
 ]

@@ -91,12 +91,34 @@ class Stage:
     tests with ``evolve.envelope.key_of_test``; ``NONE``: the world of §3. A stage evolved in
     an envelope reports its tests in both worlds."""
 
+    coverage: np.ndarray | None = None
+    """(K, 8, 30): population k's fixed coverage section, put before every navigation section
+    it evolves (the colony's navigation stage, ``ColonySettings.sections = "navigation"``);
+    ``for_population(k)`` keeps row k. None: the sections are whole chromosomes' first half."""
+    initial: np.ndarray | None = None
+    """(8, 30): the section every individual of generation 0 carries; None: uniformly random
+    bits (SPEC §5)."""
+
+    def for_population(self, k: int) -> Stage:
+        """The stage population ``k`` evolves in: with ``coverage``, its own row of it."""
+        if self.coverage is None:
+            return self
+        return dataclasses.replace(self, coverage=self.coverage[k : k + 1])
+
     def genomes(self, sections: np.ndarray) -> np.ndarray:
-        """Chromosomes the kernel runs: the sections, or sections + navigation (P, 16, 30)."""
-        if self.navigation is None:
+        """Chromosomes the kernel runs (P, 16, 30) or (P, 8, 30): the sections, sections +
+        navigation, or (``coverage``, one population's) coverage + sections."""
+        n = sections.shape[0]
+        if self.coverage is not None:
+            if len(self.coverage) != 1:
+                raise StageError("a stage with a coverage section per population runs one "
+                                 "population at a time: Stage.for_population(k)")  # fmt: skip
+            parts = [np.broadcast_to(self.coverage[0], (n, *self.coverage.shape[1:])), sections]
+        elif self.navigation is not None:
+            parts = [sections, np.broadcast_to(self.navigation, (n, *self.navigation.shape))]
+        else:
             return np.ascontiguousarray(sections)
-        nav = np.broadcast_to(self.navigation, (sections.shape[0],) + self.navigation.shape)
-        return np.ascontiguousarray(np.concatenate([sections, nav], axis=1))
+        return np.ascontiguousarray(np.concatenate(parts, axis=1))
 
 
 def evaluate_sections(
@@ -251,6 +273,7 @@ class PopulationRun:
         settings_text: str,
         resume: bool,
     ) -> None:
+        stage = stage.for_population(k)
         self.k, self.stage, self.folder = k, stage, Path(folder)
         self.table, self.ga, self.world, self.settings_text = table, ga, world, settings_text
         self.ckpt = self.folder / "checkpoints" / f"pop{k}.npz"
@@ -265,6 +288,8 @@ class PopulationRun:
             self._load_final()
         elif resume and self.ckpt.exists():
             self._load_checkpoint()
+        elif stage.initial is not None:
+            self.pop = np.repeat(stage.initial[None].astype(np.uint8), ga.population_size, axis=0)
         else:
             self.pop = gaops.random_sections(self.rng, ga.population_size, SECTION_GENES)
 

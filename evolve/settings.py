@@ -31,9 +31,9 @@ BLOCKING_RULES = ("cancel", "slide")
 COLONY_FITNESSES = ("squares", "alive", "per_step", "docks")
 """``ColonySettings.fitness`` values: what one colony run scores in the colony stage."""
 
-COLONY_SECTIONS = ("shared", "team")
-"""``ColonySettings.sections`` values: one coverage section for every robot, or one per robot
-evolved by cooperative coevolution."""
+COLONY_SECTIONS = ("shared", "team", "navigation")
+"""``ColonySettings.sections`` values: one coverage section for every robot, one per robot
+evolved by cooperative coevolution, or the navigation section under fixed coverage sections."""
 
 
 @dataclass(frozen=True)
@@ -274,7 +274,13 @@ class ColonySettings:
     cooperative coevolution"]: ``"shared"`` (default, SPEC §7), one coverage section that
     every robot carries; ``"team"``, one section per robot, robot r's from its own population
     (``evolve.coevolution``: each individual is scored as robot r of a colony whose other
-    robots carry the other populations' current bests). A team costs R populations' runs."""
+    robots carry the other populations' current bests). A team costs R populations' runs.
+    ``"navigation"``: the navigation section every robot carries, learned as a colony (from
+    the hand-off poses the colony makes, among the other robots), population k's robots
+    carrying the fixed coverage section of a finished shared run's finalist k and its
+    individuals starting as the navigation section that run carried
+    (``evolve.colony_stage.run_colony_stage(coverage=...)``; docs/colony.md "Navigation learned
+    in the colony")."""
 
     def __post_init__(self) -> None:
         if self.fitness not in COLONY_FITNESSES:

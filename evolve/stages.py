@@ -207,11 +207,17 @@ def _check_navigation(navigation: np.ndarray) -> np.ndarray:
     return nav.astype(np.uint8)
 
 
+def _gene_text(section: np.ndarray) -> list[str]:
+    """A section's genes as strings of bits (a settings document's record of it)."""
+    return ["".join(map(str, g)) for g in section.tolist()]
+
+
 def stage_settings_doc(
     stage: Stage, ga: GASettings, world: WorldSettings, table: GaitTable
 ) -> dict[str, Any]:
     """Everything a stage's results depend on (its ``settings.json`` and checkpoints' record):
-    the settings dataclasses, the stage, the table, the navigation section, the envelope
+    the settings dataclasses, the stage, the table, the fixed sections (navigation, or the
+    colony's navigation stage's coverage sections and its initial section), the envelope
     (when not ``none``: a folder made before envelopes existed resumes as it was)."""
     doc = json.loads(settings_json(ga, world, *stage.extra_settings))
     if stage.envelope != NONE:
@@ -219,7 +225,11 @@ def stage_settings_doc(
     doc["stage"] = stage.name
     doc["table"] = {"source": table.source, "values": table.values.tolist()}
     if stage.navigation is not None:
-        doc["navigation_section"] = ["".join(map(str, g)) for g in stage.navigation.tolist()]
+        doc["navigation_section"] = _gene_text(stage.navigation)
+    if stage.coverage is not None:
+        doc["coverage_sections"] = [_gene_text(c) for c in stage.coverage]
+    if stage.initial is not None:
+        doc["initial_section"] = _gene_text(stage.initial)
     doc["checkpoint_every"] = CHECKPOINT_EVERY
     return doc
 
@@ -739,7 +749,8 @@ def figure9_test(
             path = folder / "populations" / f"pop{k}_gen{g:04d}.npz"
             bests.append(read_npz(path, "saved population", ("best",), error=StageError)["best"])
         sections = np.stack(bests).astype(np.uint8)
-        _, ev, _, inverse = evaluate_sections(sections, test_starts, stage, table, world, key)
+        _, ev, _, inverse = evaluate_sections(sections, test_starts, stage.for_population(k),
+                                              table, world, key)  # fmt: skip
         inner[k] = 100.0 * ev.inner_squares[inverse].mean(axis=1) / world.inner_square_count
         squares[k] = ev.squares[inverse].mean(axis=1)
     return inner, squares

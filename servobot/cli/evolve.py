@@ -14,7 +14,8 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --colony-fitness squares|alive|per_step|docks
                                 --alive-weight 8 --dock-weight 4 --dock-cap 2
                                 --start-power-spread 0 --robots-unseen --contact-yaw 0
-                                --sections shared|team --team-from DIR]
+                                --sections shared|team|navigation --team-from DIR
+                                --coverage-from DIR]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
@@ -23,7 +24,8 @@ scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`
 ``docks``) its terms, ``--start-power-spread`` its robots' staggered start powers,
 ``--robots-unseen`` object sensors blind to the other robots, ``--contact-yaw`` the table
 world's turn away from a robot that blocks a move, ``--sections`` one section
-for every robot or a coevolved team of them;
+for every robot, a coevolved team of them, or the navigation section learned in the colony
+under the coverage sections of ``--coverage-from``'s finalists;
 ``--nav-start-power``, ``--nav-dock-tol``: ``NavigationSettings.start_power_v``,
 ``dock_heading_tol_deg``).
 ``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
@@ -154,8 +156,18 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="colony only: every robot carries one evolved coverage section (shared, default; "
         "SPEC §7) or each its own, evolved by cooperative coevolution: a team of R "
-        "populations per population, R × the runs (team); ColonySettings.sections, "
-        "docs/colony.md",
+        "populations per population, R × the runs (team); or the colony learns the "
+        "navigation section, from --navigation, under --coverage-from's coverage sections "
+        "(navigation); ColonySettings.sections, docs/colony.md",
+    )
+    p.add_argument(
+        "--coverage-from",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="colony, --sections navigation: population k's robots carry the coverage section "
+        "of the finished colony run DIR's finalist k (DIR/colony/best_pop{k}.txt); every "
+        "individual starts as the --navigation section; docs/colony.md",
     )
     p.add_argument(
         "--team-from",
@@ -415,6 +427,9 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
             raise CliError(f"{flag} is an option of the {stage} stage")
     if args.team_from is not None and args.sections != "team":
         raise CliError("--team-from is an option of the colony stage with --sections team")
+    if (args.coverage_from is not None) != (args.sections == "navigation"):
+        raise CliError("--sections navigation needs --coverage-from DIR, and --coverage-from "
+                       "is an option of the colony stage with --sections navigation")  # fmt: skip
     colony = _colony(args)
     ga = ga_settings(args)
     table = load_table(args.table)
@@ -437,13 +452,17 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     else:
         from evolve.colony_stage import run_colony_stage
 
-        team_from = None
+        team_from = coverage = None
         if args.team_from is not None:
             from evolve.coevolution import shared_populations
 
             team_from = shared_populations(args.team_from, ga)
+        if args.coverage_from is not None:
+            from evolve.colony_stage import finalists_coverage
+
+            coverage = finalists_coverage(args.coverage_from, ga.populations)
         summary = run_colony_stage(args.out, navigation=navigation, colony=colony,
-                                   team_from=team_from, **kw)  # fmt: skip
+                                   team_from=team_from, coverage=coverage, **kw)  # fmt: skip
         _print_colony(summary, args.out)
     return 0
 
