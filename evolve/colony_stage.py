@@ -1,6 +1,7 @@
 """The colony stage (SPEC §7): area coverage learned by a colony of R robots sharing one
 station, all carrying the evolved chromosome (or, with ``ColonySettings.sections = "team"``,
-each its own, ``evolve.coevolution``).
+each its own, ``evolve.coevolution``; with ``"navigation"``, the navigation section learned
+behind a finished run's fixed coverage sections).
 
 It is the coverage stage of SPEC §5 with the colony's fitness: every individual runs as a
 colony of ``ColonySettings.robots`` from colony start poses (``evolve.starts.colony_starts``,
