@@ -125,3 +125,38 @@ def test_cli_replay(pushing_report, capsys):
     assert json.loads(capsys.readouterr().out)["table"]["runs"] == 1
     assert main([str(out), "--replay", "contact_yaw_deg"]) == 2
     assert "--replay: FIELD=VALUE expected, got 'contact_yaw_deg'" in capsys.readouterr().err
+
+
+def test_replay_in_an_envelope_draws_per_draw_index(pushing_report):
+    from evolve.envelope import Envelope
+    from evolve.table import PAPER_TABLE, GaitTable
+    from servobot.validation.colony_pool import replay
+
+    _, rep = pushing_report
+    assert replay(rep, envelope=Envelope(), draw=3) == replay(rep)  # none: no draw matters
+    scatter = Envelope(scatter_scale=1.0)
+    d0, d0_again, d1 = (replay(rep, envelope=scatter, draw=d) for d in (0, 0, 1))
+    assert d0 == d0_again  # keyed draws: repeatable
+    poses = [r["runs"][0]["table"]["robots"][0]["final_pose"] for r in (replay(rep), d0, d1)]
+    assert poses[0] != poses[1] != poses[2]  # the scatter moves the robot, per draw
+    assert d0["runs"][0]["physics"] == rep["runs"][0]["physics"]
+    wrong = GaitTable(PAPER_TABLE + 1.0, source="other.json")
+    with pytest.raises(InputError, match="--table other.json: not the gait table the report"):
+        replay(rep, envelope=scatter, table=wrong)
+
+
+def test_cli_replay_in_an_envelope(pushing_report, capsys, tmp_path):
+    out, _ = pushing_report
+    env = tmp_path / "env.json"
+    env.write_text(json.dumps({"scatter_scale": 1.0, "station_stops": "always"}))
+    assert main([str(out), "--envelope", str(env), "--draws", "3", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["table"]["runs"] == 3 and got["physics"]["runs"] == 1  # 3 draws of 1 start
+    assert got["gap_inner_pp"] == got["table"]["inner_pct"] - got["physics"]["inner_pct"]
+    assert main([str(out), "--draws", "2"]) == 2
+    assert "--draws and --table go with --envelope" in capsys.readouterr().err
+    assert main([str(out), "--envelope", "default", "--draws", "0"]) == 2
+    assert "--draws must be ≥ 1, got 0" in capsys.readouterr().err
+    env.write_text(json.dumps({"scatter_scale": -1.0}))
+    assert main([str(out), "--envelope", str(env)]) == 2
+    assert "scatter_scale must be ≥ 0" in capsys.readouterr().err

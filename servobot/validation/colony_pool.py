@@ -13,7 +13,10 @@ reports written before that count existed pool too).
 chromosome, gait table, ``WorldSettings`` and ``ColonySettings`` with the given fields
 replaced, e.g. ``contact_yaw_deg=9.3`` or ``blocking=cancel``) and pools those table runs
 against the report's physics runs: what a table-world rule would have predicted for the same
-colonies (issue 17: which rule makes the table world crowd as physics does).
+colonies (issue 17: which rule makes the table world crowd as physics does). ``--envelope E
+--draws N`` replays them in an envelope of variation (SPEC §9), each start N times with the
+draws keyed (report seed, draw), the table side pooled over all N × runs; the cycle scatter
+takes σ from ``--table`` (the report's gait table file), else the shipped robot's.
 """
 
 from __future__ import annotations
@@ -28,8 +31,10 @@ from typing import Any
 import numpy as np
 
 from evolve.codec import parse_chromosome
+from evolve.envelope import NONE, Envelope, load_envelope
 from evolve.interpreter import LIVE_ENDS, run_colony
 from evolve.settings import ColonySettings, WorldSettings, settings_from_record
+from evolve.table import GaitTable, load_table
 from evolve.world import TableColony
 from infra.errors import InputError
 from servobot.validation.colony import colony_record
@@ -67,23 +72,33 @@ def read_report(path: Path) -> dict[str, Any]:
     return report
 
 
-def replay(report: dict[str, Any], **changes: Any) -> dict[str, Any]:
+def replay(
+    report: dict[str, Any], *, envelope: Envelope = NONE, draw: int = 0,
+    table: GaitTable | None = None, **changes: Any,
+) -> dict[str, Any]:  # fmt: skip
     """``report`` with the table record of every run whose physics finished replaced by the
     same colony start run again in the table world, its ``ColonySettings`` fields ``changes``
-    replaced (``InputError`` naming a bad field or value)."""
+    replaced (``InputError`` naming a bad field or value), in ``envelope`` with the draws of
+    key (report seed, ``draw``) at the run's index. ``table``: the report's gait table with
+    its per-cycle σ for the envelope's scatter (``InputError`` when its values are not the
+    report's); None: the report's values, σ the shipped robot's."""
     name = "replay"
     settings = report["settings"]
     world = settings_from_record(WorldSettings, settings["WorldSettings"], name, InputError)
     doc = {**settings["ColonySettings"], **changes}
     colony = settings_from_record(ColonySettings, doc, name, InputError)
     bits = parse_chromosome(report["chromosome"])
-    table = np.asarray(report["table"]["values"], dtype=np.float64)
+    values = np.asarray(report["table"]["values"], dtype=np.float64)
+    if table is not None and not np.array_equal(table.values, values):
+        raise InputError(f"--table {table.source}: not the gait table the report ran on")
+    key = (int(settings.get("seed") or 0), draw)
     runs = []
-    for run in report["runs"]:
+    for i, run in enumerate(report["runs"]):
         if run.get("table") and run.get("physics"):
             start = np.array([[p["x"], p["y"], p["h"]] for p in run["start"]])
-            res = run_colony(bits, TableColony(table, start, world, colony), mode="coverage",
-                             settings=world, colony=colony,
+            sim = TableColony(values if table is None else table, start, world, colony,
+                              envelope=envelope, envelope_key=key, start=i)  # fmt: skip
+            res = run_colony(bits, sim, mode="coverage", settings=world, colony=colony,
                              max_steps=settings["max_steps"])  # fmt: skip
             run = {**run, "table": colony_record(res, 0.0)}
         runs.append(run)
@@ -165,16 +180,33 @@ def main(argv: list[str] | None = None) -> int:
                     help="run the table side again with these ColonySettings fields replaced "
                          "(JSON values, e.g. contact_yaw_deg=9.3 blocking='\"cancel\"'; "
                          "a bare word is a string)")  # fmt: skip
+    ap.add_argument("--envelope", default=None, metavar="none|default|FILE.json",
+                    help="replay the table side in this envelope (SPEC §9)")  # fmt: skip
+    ap.add_argument("--draws", type=int, default=1, metavar="N",
+                    help="with --envelope: replay each start N times, N draws (1)")  # fmt: skip
+    ap.add_argument("--table", default=None, metavar="PATH",
+                    help="with --envelope: the reports' gait table file, whose per-cycle σ "
+                         "the scatter takes (default: the shipped robot's σ)")  # fmt: skip
     ap.add_argument("--json", action="store_true", help="print the pooled numbers as JSON")
     args = ap.parse_args(argv)
     try:
+        if args.draws < 1:
+            raise InputError(f"--draws must be ≥ 1, got {args.draws}")
+        if args.envelope is None and (args.draws != 1 or args.table is not None):
+            raise InputError("--draws and --table go with --envelope")
         changes = _changes(args.replay or [])
+        envelope = NONE if args.envelope is None else load_envelope(args.envelope)
+        table = None if args.table is None else load_table(args.table)
         reports = []
         for path in (p for folder in args.folders for p in report_files(folder)):
             reports.append(read_report(path))
-        if args.replay is not None:
-            reports = [replay(r, **changes) for r in reports]
-        pooled = pool(reports)
+        if args.replay is None and args.envelope is None:
+            pooled = pool(reports)
+        else:
+            replays = [replay(r, envelope=envelope, draw=d, table=table, **changes)
+                       for d in range(args.draws) for r in reports]  # fmt: skip
+            pooled = {**pool(reports), "table": pool(replays)["table"]}
+            pooled["gap_inner_pp"] = pooled["table"]["inner_pct"] - pooled["physics"]["inner_pct"]
     except InputError as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 2
