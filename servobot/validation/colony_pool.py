@@ -200,12 +200,11 @@ def main(argv: list[str] | None = None) -> int:
         reports = []
         for path in (p for folder in args.folders for p in report_files(folder)):
             reports.append(read_report(path))
-        if args.replay is None and args.envelope is None:
-            pooled = pool(reports)
-        else:
+        pooled = pool(reports)
+        if args.replay is not None or args.envelope is not None:
             replays = [replay(r, envelope=envelope, draw=d, table=table, **changes)
                        for d in range(args.draws) for r in reports]  # fmt: skip
-            pooled = {**pool(reports), "table": pool(replays)["table"]}
+            pooled["table"] = pool(replays)["table"]
             pooled["gap_inner_pp"] = pooled["table"]["inner_pct"] - pooled["physics"]["inner_pct"]
     except InputError as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
