@@ -292,6 +292,47 @@ def figure_colony_docks(
     return _save(fig, Path(path))
 
 
+def figure_colony_choice(
+    path: str | Path,
+    points: list[dict[str, Any]],
+    title: str,
+    *,
+    robots: int = 3,
+    min_live: float = 2.0,
+) -> Path:
+    """Finalists' colony validations in the plane physics chooses in: colony inner coverage
+    (%, x) against robots live at the end per run (of ``robots``, y). Each point (``label``,
+    ``inner_pct``, ``live_per_run``, optional ``kind``: ``finalist``, ``chosen`` or
+    ``confirmation``) is drawn by its kind; a chosen finalist and its confirmation are joined.
+    Dashed: ``min_live``, the rule's floor (none at 0)."""
+    style = {"finalist": dict(marker="o", color="0.55", s=30),
+             "chosen": dict(marker="o", color="C3", s=55),
+             "confirmation": dict(marker="*", color="C3", s=140)}  # fmt: skip
+    fig, ax = plt.subplots(figsize=(6.0, 4.4))
+    for kind, kw in style.items():
+        pts = [p for p in points if p.get("kind", "finalist") == kind]
+        if pts:
+            ax.scatter([p["inner_pct"] for p in pts], [p["live_per_run"] for p in pts],
+                       zorder=3, label=kind, ec="k", lw=0.4, **kw)  # fmt: skip
+        for p in pts:
+            ax.annotate(p["label"], (p["inner_pct"], p["live_per_run"]), fontsize=6.5,
+                        xytext=(4, 3), textcoords="offset points")  # fmt: skip
+    chosen = [p for p in points if p.get("kind") in ("chosen", "confirmation")]
+    for a, b in zip(chosen[:-1], chosen[1:], strict=True):
+        ax.annotate("", (b["inner_pct"], b["live_per_run"]), (a["inner_pct"], a["live_per_run"]),
+                    arrowprops=dict(arrowstyle="->", color="C3", lw=0.9))  # fmt: skip
+    if min_live > 0:
+        ax.axhline(min_live, color="k", ls="--", lw=0.9, label=f"{min_live:g} of {robots} live")
+    ax.set_xlabel("colony inner coverage, physics (% of the inner squares)")
+    ax.set_ylabel(f"robots live at the end per run (of {robots})")
+    ax.set_ylim(-0.1, robots + 0.1)
+    ax.set_title(title, fontsize=8)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    return _save(fig, Path(path))
+
+
 def run_track(
     chromosome: np.ndarray,
     *,
@@ -451,6 +492,7 @@ __all__ = [
     "figure9",
     "figure10",
     "figure_anytime",
+    "figure_colony_choice",
     "figure_colony_docks",
     "lit_mask",
     "run_colony_track",

@@ -346,6 +346,17 @@ def test_colony_stages_evolve_validate_and_report(colony_dir: Path) -> None:
             assert (sub / f"tracks{j}.png").exists()
     assert np.isfinite(val["gap_inner_pp"])
     text = (out / "REPORT.md").read_text()
+    # The finalist physics chooses (colony_choice's rule, worked from the reports' summaries).
+    phys = {k: json.loads((out / "colony_validation" / f"pop{k}" / "report.json").read_text())
+            ["summary"]["physics"] for k in val["colony_finalists"]}  # fmt: skip
+    live = {k: p["live_at_end_per_run"] for k, p in phys.items()}
+    assert {k: f["live_at_end"]["physics"] for k, f in val["colony_finalists"].items()} == live
+    assert "| live at the end (of 3), table | physics |" in text
+    fine = [k for k in phys if live[k] >= 2.0]
+    chosen = (max(fine, key=lambda k: phys[k]["inner_pct"]) if fine else
+              max(phys, key=lambda k: (live[k], phys[k]["inner_pct"])))  # fmt: skip
+    inner = phys[chosen]["inner_pct"]
+    assert f"else the most live): **pop{chosen}**, physics {inner:.1f} %" in text
     for line in ("| colony |", "| colony_validation |", "## 6. A colony of 3 robots",
                  "](colony/figure9.png)", "](colony_validation/pop1/tracks0.png)",
                  "`rerun colony_validation/pop0/run0.rrd` (2 recordings in "

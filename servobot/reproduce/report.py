@@ -21,6 +21,7 @@ from infra.io import atomic_write_text
 from servo_mj.robot.model import model_label
 from servobot.reproduce.settings import ReproduceSettings
 from servobot.robustness.report import MEAN_AND_DROP, matrix_table
+from servobot.validation.colony_choice import choice_line
 
 
 def _load_json(path: Path) -> dict[str, Any] | None:
@@ -333,6 +334,13 @@ def _contact_yaw(deg: float) -> str:
     return f", a blocked move turning {deg:g}° away from a robot abeam" if deg else ""
 
 
+def _live_cells(finalist: dict[str, Any]) -> str:
+    """A finalist's robots live at the end per run, table and physics cells ("—" for a
+    validation recorded before the count was kept, or with no run)."""
+    live = finalist.get("live_at_end", {})
+    return " | ".join(_number(live.get(w), ".2f") for w in ("table", "physics"))
+
+
 def _colony_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Path]]:
     """The colony stages: the colony's Figure 9 and table-world test, its finalists in physics
     (gap, each robot's docks and station waits, tracks), and their recordings."""
@@ -387,21 +395,24 @@ def _colony_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Pa
     if "colony_finalists" not in info:
         return [*lines, "*(colony_validation not finished)*", ""], rrds
     lines += [
-        "| finalist | runs ok | table inner % | physics inner % | gap (pp) | docks per robot, "
-        "table | physics | station waits per robot, table | physics | physics errors |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        f"| finalist | runs ok | table inner % | physics inner % | gap (pp) | live at the end "
+        f"(of {r}), table | physics | docks per robot, table | physics | station waits per "
+        "robot, table | physics | physics errors |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for k, f in info["colony_finalists"].items():
         t_in, p_in, gap = f["table_inner_percent"], f["physics_inner_percent"], f["gap_inner_pp"]
         lines.append(
             f"| {k} | {f['runs_ok']}/{f['starts']} | {_number(t_in, '.1f')} | "
             f"{_number(p_in, '.1f')} | {_number(gap, '+.1f')} | "
-            f"{_robots_cell(f['docks']['table'])} | {_robots_cell(f['docks']['physics'])} | "
+            f"{_live_cells(f)} | {_robots_cell(f['docks']['table'])} | "
+            f"{_robots_cell(f['docks']['physics'])} | "
             f"{_robots_cell(f['station_waits']['table'])} | "
             f"{_robots_cell(f['station_waits']['physics'])} | {f['physics_errors']} |"
         )
     if info.get("gap_inner_pp") is not None:
-        lines.append(f"| **all** | | | | **{info['gap_inner_pp']:+.1f}** | | | | | |")
+        lines.append(f"| **all** | | | | **{info['gap_inner_pp']:+.1f}** | | | | | | | |")
+    lines += ["", choice_line(folder, r)]
     lines += ["", "Tracks from the first colony start (table world left, physics right):", ""]
     for k in info["colony_finalists"]:
         sub = folder / f"pop{k}"

@@ -459,8 +459,9 @@ def colony_validation_info(folder: Path, n: int) -> dict[str, Any]:
     """The colony validation's numbers (its done record; REPORT.md shows them): per colony
     finalist ``k`` (``folder/pop{k}/report.json``) the colony inner % in each world and the gap
     table − physics (pp), both over the runs whose physics finished (None when none did), each
-    robot's docks and station waits per run in each world (``per_robot``), physics errors;
-    ``gap_inner_pp``: the mean gap over the finalists that have one."""
+    robot's docks and station waits per run in each world (``per_robot``), physics errors, the
+    robots live at the end per run in each world (``live_at_end``); ``gap_inner_pp``: the mean
+    gap over the finalists that have one."""
     finalists: dict[str, Any] = {}
     for k in range(n):
         rep = read_json(folder / f"pop{k}" / "report.json", what="colony validation report",
@@ -476,7 +477,9 @@ def colony_validation_info(folder: Path, n: int) -> dict[str, Any]:
             "docks": per_robot(rep, "docks"),
             "station_waits": per_robot(rep, "station_waits"),
             "physics_errors": sm["physics_errors"],
-        }
+            "live_at_end": {w: sm[key].get("live_at_end_per_run")
+                            for w, key in (("table", "table_paired"), ("physics", "physics"))},
+        }  # fmt: skip
     gaps = [f["gap_inner_pp"] for f in finalists.values() if f["gap_inner_pp"] is not None]
     return {"colony_finalists": finalists,
             "gap_inner_pp": float(np.mean(gaps)) if gaps else None}  # fmt: skip
