@@ -174,12 +174,13 @@ def confirm_finalist(
 
 def confirmed(folder: Path, chosen: dict[str, Any], seed: int, starts: int) -> bool:
     """Whether ``folder`` holds a finished confirmation of ``chosen``: the same chromosome,
-    colony settings and step limit, ``starts`` runs from ``seed`` (then it is not run again)."""
+    world, colony and arena settings and step limit, ``starts`` runs from ``seed`` (then it is
+    not run again)."""
     path = folder / "report.json"
     if not path.is_file():
         return False
     done = read_report(path)
-    same = ("ColonySettings", "max_steps")
+    same = ("WorldSettings", "ColonySettings", "ArenaSettings", "max_steps")
     return (
         done["chromosome"] == chosen["chromosome"]
         and len(done["runs"]) == starts
