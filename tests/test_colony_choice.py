@@ -154,7 +154,7 @@ def test_choice_confirmed_end_to_end(tmp_path, capsys) -> None:
         pytest.fail("confirmation run again")
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(colony_choice, "validate_colony", refuse)
+        mp.setattr(colony_choice, "execute", refuse)
         assert main([str(val), "--confirm", "1"]) == 0
         with pytest.raises(pytest.fail.Exception):  # another seed is another confirmation
             main([str(val), "--confirm", "1", "--confirm-seed", "5"])

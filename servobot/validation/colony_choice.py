@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -43,13 +44,15 @@ from evolve.starts import colony_starts
 from infra.bounds import check_int, check_nonnegative
 from infra.command import EXIT_FAILED
 from infra.errors import InputError
+from infra.executors import make_executor
 from infra.io import atomic_write_json, atomic_write_text
+from infra.rundir import RECORD_FILE, record_of
 from servo_mj.world.arena import ArenaSettings
 from servobot.progress import RunBar
-from servobot.validation.colony import validate_colony
+from servobot.validation.colony import colony_kind
 from servobot.validation.colony_pool import pool, read_report, report_files
 from servobot.validation.colony_report import WORLDS
-from servobot.validation.lone import load_checked_table
+from servobot.validation.lone import execute, load_checked_table, plan_validation
 
 PROG = "python -m servobot.validation.colony_choice"
 CONFIRM_SEED_OFFSET = 1000
@@ -152,41 +155,30 @@ def confirmation_of(report: dict[str, Any], folder: Path) -> Confirmation:
 
 def confirm_finalist(
     c: Confirmation, starts: int, seed: int, out: Path, workers: int | None = None
-) -> dict[str, Any]:
+) -> None:
     """Run ``c``'s finalist as its validation did from ``starts`` fresh colony starts of
     ``seed`` (``colony_starts``, as ``servobot validate --robots R --seed S`` draws them) into
-    ``out``; the validation report."""
+    ``out``, unless ``out`` already holds that validation finished: its report written and its
+    run folder's record (``settings.json``) the plan's own, so the same chromosome, table,
+    starts and settings."""
     table, warning = load_checked_table(c.table)
     if warning:
         print(warning, file=sys.stderr)
     poses = colony_starts(np.random.default_rng(seed), starts, c.world, c.colony)
+    plan = plan_validation(
+        read_chromosome(c.chromosome), poses, table=table, kind=colony_kind(c.colony),
+        world=c.world, arena=c.arena, out_dir=out, max_steps=c.max_steps, seed=seed,
+        meta={"chromosome_file": str(c.chromosome), "seed": seed, "command": PROG},
+    )  # fmt: skip
+    record = out / RECORD_FILE
+    if (out / "report.json").is_file() and record.is_file():
+        if json.loads(record.read_text()) == record_of(plan.record, "validate"):
+            return
     bar = RunBar("confirm", True, total=starts, unit="start")
     try:
-        return validate_colony(
-            read_chromosome(c.chromosome), poses, table=table, colony=c.colony, world=c.world,
-            arena=c.arena, out_dir=out, workers=workers, max_steps=c.max_steps, seed=seed,
-            on_run=lambda rec: bar(),
-            meta={"chromosome_file": str(c.chromosome), "seed": seed, "command": PROG},
-        )  # fmt: skip
+        execute([plan], make_executor(None, workers), lambda rec: bar())
     finally:
         bar.close()
-
-
-def confirmed(folder: Path, chosen: dict[str, Any], seed: int, starts: int) -> bool:
-    """Whether ``folder`` holds a finished confirmation of ``chosen``: the same chromosome,
-    world, colony and arena settings and step limit, ``starts`` runs from ``seed`` (then it is
-    not run again)."""
-    path = folder / "report.json"
-    if not path.is_file():
-        return False
-    done = read_report(path)
-    same = ("WorldSettings", "ColonySettings", "ArenaSettings", "max_steps")
-    return (
-        done["chromosome"] == chosen["chromosome"]
-        and len(done["runs"]) == starts
-        and done["settings"].get("seed") == seed
-        and all(done["settings"].get(k) == chosen["settings"].get(k) for k in same)
-    )
 
 
 def choice_markdown(doc: dict[str, Any]) -> str:
@@ -277,8 +269,7 @@ def run_choice(
         )
         sub = out / "confirm"
         plan = confirmation_of(reports[i], paths[i].parent)
-        if not confirmed(sub, reports[i], seed, confirm):
-            confirm_finalist(plan, confirm, seed, sub, workers)
+        confirm_finalist(plan, confirm, seed, sub, workers)
         done = read_report(sub / "report.json")
         code = EXIT_FAILED if done["summary"]["physics_errors"] else 0
         again = pool([done])
