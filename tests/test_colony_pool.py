@@ -156,7 +156,7 @@ def test_cli_replay_in_an_envelope(pushing_report, capsys, tmp_path):
     assert main([str(out), "--draws", "2"]) == 2
     assert "--draws and --table go with --envelope" in capsys.readouterr().err
     assert main([str(out), "--envelope", "default", "--draws", "0"]) == 2
-    assert "--draws must be ≥ 1, got 0" in capsys.readouterr().err
+    assert "--draws must be an integer ≥ 1, got 0" in capsys.readouterr().err
     env.write_text(json.dumps({"scatter_scale": -1.0}))
     assert main([str(out), "--envelope", str(env)]) == 2
     assert "scatter_scale must be ≥ 0" in capsys.readouterr().err

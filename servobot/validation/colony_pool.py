@@ -36,6 +36,7 @@ from evolve.interpreter import LIVE_ENDS, run_colony
 from evolve.settings import ColonySettings, WorldSettings, settings_from_record
 from evolve.table import GaitTable, load_table
 from evolve.world import TableColony
+from infra.bounds import check_int
 from infra.errors import InputError
 from servobot.validation.colony import colony_record
 from servobot.validation.colony_report import WORLDS, ended_at_station
@@ -190,8 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print the pooled numbers as JSON")
     args = ap.parse_args(argv)
     try:
-        if args.draws < 1:
-            raise InputError(f"--draws must be ≥ 1, got {args.draws}")
+        check_int(args.draws, "--draws", lo=1)
         if args.envelope is None and (args.draws != 1 or args.table is not None):
             raise InputError("--draws and --table go with --envelope")
         changes = _changes(args.replay or [])
