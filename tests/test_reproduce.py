@@ -160,6 +160,12 @@ def test_robustness_stage_runs_every_finalist_in_every_world(run_dir: tuple[Path
     assert "## 5. Robustness" in text and "](robustness/robustness.png)" in text
     assert "| **drop vs shipped (pp)** |" in text and "| best_pop1 |" in text
     assert (out / "robustness" / "robustness.png").exists()
+    # the finalist physics chooses: the most inner coverage in its worst world, long-legs unseen
+    seen = [w for w in doc["worlds"] if w["name"] != "long-legs"]
+    vals = [[w["per_chromosome"][k]["physics_inner_percent"] or 0.0 for w in seen]
+            for k in range(len(names))]  # fmt: skip
+    k = max(range(len(names)), key=lambda k: (min(vals[k]), sum(vals[k])))
+    assert f"worst world of {', '.join(w['name'] for w in seen)}): **{names[k]}**" in text
 
 
 def test_interrupted_matrix_resumes_cell_by_cell(run_dir: tuple[Path, dict]) -> None:

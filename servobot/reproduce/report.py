@@ -20,6 +20,7 @@ from evolve.table import PAPER_TABLE, load_table
 from infra.io import atomic_write_text
 from servo_mj.robot.model import model_label
 from servobot.reproduce.settings import ReproduceSettings
+from servobot.robustness.matrix_choice import choice_line as matrix_choice_line
 from servobot.robustness.report import MEAN_AND_DROP, matrix_table
 from servobot.validation.colony_choice import choice_line
 
@@ -302,6 +303,8 @@ def _robustness_section(out: Path, s: ReproduceSettings) -> list[str]:
         "",
         "How runs end, model hashes: `robustness/robustness.md`; each cell's validation: "
         "`robustness/runs/{world}/best_pop{k}/report.md`.",
+        "",
+        matrix_choice_line(doc),
         "",
     ]
     return lines

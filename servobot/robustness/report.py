@@ -227,14 +227,22 @@ def markdown(doc: dict[str, Any]) -> str:
 
 
 def figure(doc: dict[str, Any], path: Path) -> Path:
-    """``robustness.png``: the grid as a heatmap (0–100 %), values annotated, the table world
-    set apart from the physics worlds by a line."""
+    """``robustness.png``: the grid as a heatmap (``heatmap``)."""
+    return heatmap(path, *grid(doc), "inner squares reached, % (navigation: docking %)")
+
+
+def heatmap(
+    path: Path, rows: list[str], cols: list[str], vals: np.ndarray, title: str,
+    last_row_apart: bool = False,
+) -> Path:  # fmt: skip
+    """A grid of percents as a heatmap (0–100 %), values annotated, the first column (the
+    table world) set apart from the physics worlds by a line, and the last row from the
+    others when ``last_row_apart``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows, cols, vals = grid(doc)
     fig, ax = plt.subplots(figsize=(1.3 * len(cols) + 2.5, 0.55 * len(rows) + 1.8))
     im = ax.imshow(np.ma.masked_invalid(vals), cmap="viridis", vmin=0.0, vmax=100.0,
                    aspect="auto")  # fmt: skip
@@ -242,9 +250,11 @@ def figure(doc: dict[str, Any], path: Path) -> Path:
         ax.text(j, i, _fmt(v), ha="center", va="center", fontsize=9,
                 color="black" if np.isfinite(v) and v > 60 else "white")  # fmt: skip
     ax.axvline(0.5, color="white", linewidth=3)
+    if last_row_apart:
+        ax.axhline(len(rows) - 1.5, color="white", linewidth=3)
     ax.set_xticks(range(len(cols)), cols, rotation=30, ha="right")
     ax.set_yticks(range(len(rows)), rows)
-    ax.set_title("inner squares reached, % (navigation: docking %)", fontsize=10)
+    ax.set_title(title, fontsize=10)
     fig.colorbar(im, ax=ax, label="%")
     try:
         return atomic_write(path, lambda p: fig.savefig(p, dpi=DPI, bbox_inches="tight"))
@@ -264,6 +274,7 @@ __all__ = [
     "ROBUSTNESS_OUTPUTS",
     "figure",
     "grid",
+    "heatmap",
     "markdown",
     "matrix_table",
     "same_table_runs",
