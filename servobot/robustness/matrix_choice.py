@@ -38,7 +38,6 @@ from typing import Any
 import numpy as np
 
 from evolve.codec import format_chromosome, parse_chromosome
-from infra.bounds import check_int
 from infra.command import EXIT_FAILED
 from infra.errors import InputError
 from infra.io import atomic_write_json, atomic_write_text
@@ -47,7 +46,11 @@ from servobot.robustness.floor import read_matrix
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
 from servobot.robustness.report import heatmap
 from servobot.robustness.worlds import BUILT_IN, HELD_OUT, SHIPPED
-from servobot.validation.colony_choice import CONFIRM_SEED_OFFSET
+from servobot.validation.colony_choice import (
+    CONFIRM_SEED_OFFSET,
+    add_confirm_options,
+    check_confirm_options,
+)
 from servobot.validation.lone import NAVIGATION_MODE
 
 PROG = "python -m servobot.robustness.matrix_choice"
@@ -321,39 +324,11 @@ def main(argv: list[str] | None = None) -> int:
         help="comma-separated worlds that choose (default: the matrix's, less the "
         f"held-out {HELD_OUT.name})",
     )
-    ap.add_argument(
-        "--confirm",
-        type=int,
-        default=0,
-        metavar="N",
-        help="run the chosen chromosome again from N fresh starts in every world",
-    )
-    ap.add_argument(
-        "--confirm-seed",
-        type=int,
-        default=None,
-        metavar="S",
-        help=f"their seed (default: the matrix's + {CONFIRM_SEED_OFFSET})",
-    )
-    ap.add_argument(
-        "--out",
-        type=Path,
-        default=None,
-        metavar="OUT",
-        help="where choice.{json,md,png} and confirm/ go (default MATRIX/choice)",
-    )
-    ap.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="the confirmation's worker processes (servobot robustness's default)",
-    )
+    add_confirm_options(ap, "fresh starts in every world", "the matrix's", "MATRIX",
+                        "servobot robustness")  # fmt: skip
     args = ap.parse_args(argv)  # fmt: skip
     try:
-        check_int(args.confirm, "--confirm", lo=0)
-        if args.confirm_seed is not None:
-            check_int(args.confirm_seed, "--confirm-seed", lo=0)
+        check_confirm_options(args)
         worlds = None if args.worlds is None else tuple(args.worlds.split(","))
         doc, code = run_choice(args.matrix, ChoiceRule(args.by, worlds),
                                args.out or args.matrix / "choice", args.confirm,

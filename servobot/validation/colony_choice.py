@@ -313,6 +313,45 @@ def choice_figure(doc: dict[str, Any], path: Path, robots: int) -> Path:
     )
 
 
+def add_confirm_options(
+    ap: argparse.ArgumentParser, starts: str, seed_of: str, folder: str, runs_as: str
+) -> None:
+    """A choice command's ``--confirm N``, ``--confirm-seed S``, ``--out OUT`` and ``--workers
+    N`` (also ``servobot.robustness.matrix_choice``): the chosen one runs again from N
+    ``starts`` (seed: ``seed_of`` seed + ``CONFIRM_SEED_OFFSET``), outputs in OUT (default
+    ``folder``/choice), the confirmation on ``runs_as``'s workers."""
+    ap.add_argument(
+        "--confirm",
+        type=int,
+        default=0,
+        metavar="N",
+        help=f"run the chosen one again from N {starts} (default 0)",
+    )
+    ap.add_argument(
+        "--confirm-seed",
+        type=int,
+        default=None,
+        metavar="S",
+        help=f"their seed (default: {seed_of} + {CONFIRM_SEED_OFFSET})",
+    )
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="OUT",
+        help=f"where choice.{{json,md,png}} and confirm/ go (default {folder}/choice)",
+    )
+    ap.add_argument("--workers", type=int, default=None, metavar="N",
+                    help=f"the confirmation's worker processes ({runs_as}'s default)")  # fmt: skip
+
+
+def check_confirm_options(args: argparse.Namespace) -> None:
+    """``BoundsError`` (an ``InputError``) naming a negative ``--confirm`` or ``--confirm-seed``."""
+    check_int(args.confirm, "--confirm", lo=0)
+    if args.confirm_seed is not None:
+        check_int(args.confirm_seed, "--confirm-seed", lo=0)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Choose, optionally confirm, print ``choice.md``; exit 0, 1 or 2 (module docstring)."""
     ap = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
@@ -336,40 +375,11 @@ def main(argv: list[str] | None = None) -> int:
         default=ChoiceRule.world,
         help="whose runs choose: physics (default) or the table world's from the same starts",
     )
-    ap.add_argument(
-        "--confirm",
-        type=int,
-        default=0,
-        metavar="N",
-        help="run the chosen finalist again from N fresh colony starts (default 0)",
-    )
-    ap.add_argument(
-        "--confirm-seed",
-        type=int,
-        default=None,
-        metavar="S",
-        help=f"their seed (default: the validation's + {CONFIRM_SEED_OFFSET})",
-    )
-    ap.add_argument(
-        "--out",
-        type=Path,
-        default=None,
-        metavar="OUT",
-        help="where choice.{json,md} and confirm/ go (default DIR/choice)",
-    )
-    ap.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="the confirmation's worker processes (servobot validate's default)",
-    )
+    add_confirm_options(ap, "fresh colony starts", "the validation's", "DIR", "servobot validate")
     args = ap.parse_args(argv)
     try:
         check_nonnegative(args.min_live, "--min-live", " robots")
-        check_int(args.confirm, "--confirm", lo=0)
-        if args.confirm_seed is not None:
-            check_int(args.confirm_seed, "--confirm-seed", lo=0)
+        check_confirm_options(args)
         doc, code = run_choice(
             args.folder,
             ChoiceRule(args.min_live, args.by),
