@@ -160,3 +160,15 @@ def test_bad_input_exits_2_naming_it(tiny, tmp_path, capsys, extra, message):
 def test_a_folder_that_is_not_a_matrix_exits_2(tmp_path, capsys):
     assert choice_main([str(tmp_path), "--out", str(tmp_path / "c")]) == 2
     assert "not a finished `servobot robustness` folder" in capsys.readouterr().err
+
+
+def test_a_world_whose_model_changed_is_refused_before_any_run(tiny, tmp_path, capsys):
+    copy = tmp_path / "m"
+    copy.mkdir()
+    doc = json.loads((tiny / "robustness.json").read_text())
+    doc["worlds"][1]["model_sha256"] = "0" * 64
+    (copy / "robustness.json").write_text(json.dumps(doc))
+    (copy / "settings.json").write_text((tiny / "settings.json").read_text())
+    assert choice_main([str(copy), "--confirm", "1", "--out", str(tmp_path / "c")]) == 2
+    assert "world 'weak': its robot model changed" in capsys.readouterr().err
+    assert not (tmp_path / "c" / "confirm").exists()

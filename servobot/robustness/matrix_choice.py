@@ -45,7 +45,7 @@ from servobot.progress import RunBar
 from servobot.robustness.floor import read_matrix
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
 from servobot.robustness.report import heatmap
-from servobot.robustness.worlds import BUILT_IN, HELD_OUT, SHIPPED
+from servobot.robustness.worlds import BUILT_IN, HELD_OUT, SHIPPED, resolve_worlds, world_sha256
 from servobot.validation.colony_choice import (
     CONFIRM_SEED_OFFSET,
     add_confirm_options,
@@ -158,7 +158,8 @@ def confirmation_settings(
     doc: dict[str, Any], record: dict[str, Any], starts: int, seed: int
 ) -> RobustnessSettings:
     """MATRIX's settings with ``starts`` fresh starts of ``seed`` in every world it ran (a
-    variant file world by its file, which must still exist)."""
+    variant file world by its file, which must still exist); ``InputError`` when a world's
+    robot model is no longer the one MATRIX ran."""
     rs = record["RobustnessSettings"]
     worlds = []
     for w in doc["worlds"]:
@@ -168,6 +169,9 @@ def confirmation_settings(
             worlds.append(str(w["model"]))
         else:
             raise InputError(f"world {w['name']!r}: its variant file {w.get('model')} is gone")
+    for w, spec in zip(doc["worlds"], resolve_worlds(worlds), strict=True):
+        if world_sha256(spec) != w["model_sha256"]:
+            raise InputError(f"world {w['name']!r}: its robot model changed since the matrix ran")
     return RobustnessSettings(worlds=tuple(worlds), starts=starts, steps=int(rs["steps"]),
                               seed=seed, table=str(rs["table"]))  # fmt: skip
 
@@ -188,8 +192,7 @@ def confirm(
     workers: int | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """Run chromosome ``name`` of the matrix through every world of it from ``starts`` fresh
-    starts of ``seed`` into ``out/confirm``; its ``robustness.json`` document. ``InputError``
-    when a world's robot model is no longer the one MATRIX ran."""
+    starts of ``seed`` into ``out/confirm``; its ``robustness.json`` document."""
     settings = confirmation_settings(doc, record, starts, seed)
     file = chosen_file(record, name, out)
     bar = RunBar("confirm", True, total=starts * len(settings.worlds), unit="run")
@@ -198,9 +201,6 @@ def confirm(
                            on_run=bar, on_skip=bar.advance)  # fmt: skip
     finally:
         bar.close()
-    for w0, w1 in zip(doc["worlds"], again["worlds"], strict=True):
-        if w0["model_sha256"] != w1["model_sha256"]:
-            raise InputError(f"world {w0['name']!r}: its robot model changed since the matrix ran")
     return again
 
 
