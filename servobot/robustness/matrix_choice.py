@@ -24,14 +24,13 @@ Writes ``OUT/choice.json``, ``OUT/choice.md`` and ``OUT/choice.png`` (the finali
 the confirmation beneath; OUT defaults to ``MATRIX/choice``) and prints the Markdown. Exit
 status: 0, 1 when a confirmation's physics run failed, 2 = bad input (not a finished matrix,
 no coverage chromosome, an unknown world, a world whose model changed since MATRIX ran), 130
-= interrupted.
+= interrupted (143 on SIGTERM).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -50,6 +49,7 @@ from servobot.validation.colony_choice import (
     CONFIRM_SEED_OFFSET,
     add_confirm_options,
     check_confirm_options,
+    run_choice_command,
 )
 from servobot.validation.lone import NAVIGATION_MODE
 
@@ -327,20 +327,17 @@ def main(argv: list[str] | None = None) -> int:
     add_confirm_options(ap, "fresh starts in every world", "the matrix's", "MATRIX",
                         "servobot robustness")  # fmt: skip
     args = ap.parse_args(argv)  # fmt: skip
-    try:
+    out = args.out or args.matrix / "choice"
+
+    def body() -> int:
         check_confirm_options(args)
         worlds = None if args.worlds is None else tuple(args.worlds.split(","))
-        doc, code = run_choice(args.matrix, ChoiceRule(args.by, worlds),
-                               args.out or args.matrix / "choice", args.confirm,
+        doc, code = run_choice(args.matrix, ChoiceRule(args.by, worlds), out, args.confirm,
                                args.confirm_seed, args.workers)  # fmt: skip
-    except InputError as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; the confirmation resumes where it stopped", file=sys.stderr)
-        return 130
-    print(choice_markdown(doc), end="")
-    return code
+        print(choice_markdown(doc), end="")
+        return code
+
+    return run_choice_command(PROG, argv, out, body)
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ Writes ``OUT/choice.json``, ``OUT/choice.md`` and ``OUT/choice.png`` (each final
 coverage against its robots live, the chosen one joined to its confirmation; OUT defaults to
 ``DIR/choice``) and prints the Markdown. Exit status: 0, 1 when a confirmation's physics run
 failed, 2 = bad input (a folder without reports, a report that is not a colony validation, a
-confirmation this module cannot rebuild), 130 = interrupted.
+confirmation this module cannot rebuild), 130 = interrupted (143 on SIGTERM).
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import argparse
 import dataclasses
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +43,7 @@ from evolve.codec import read_chromosome
 from evolve.settings import ColonySettings, WorldSettings, settings_from_record
 from evolve.starts import colony_starts
 from infra.bounds import check_int, check_nonnegative
-from infra.command import EXIT_FAILED
+from infra.command import EXIT_FAILED, Interrupted, command_line, run_command
 from infra.errors import InputError
 from infra.executors import make_executor
 from infra.io import atomic_write_json, atomic_write_text
@@ -352,6 +353,17 @@ def check_confirm_options(args: argparse.Namespace) -> None:
         check_int(args.confirm_seed, "--confirm-seed", lo=0)
 
 
+def run_choice_command(
+    prog: str, argv: list[str] | None, out: Path, body: Callable[[], int]
+) -> int:
+    """A choice command's ``body`` under ``infra.command.run_command`` (also
+    ``servobot.robustness.matrix_choice``): bad input exits 2 naming it, Ctrl-C 130 and
+    SIGTERM 143 saying what is kept and how to go on."""
+    kept = f"what the confirmation finished in {out / 'confirm'}; choice.json is written at the end"
+    resume = command_line(prog, sys.argv[1:] if argv is None else argv)
+    return run_command(prog, body, lambda: Interrupted(kept, resume))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Choose, optionally confirm, print ``choice.md``; exit 0, 1 or 2 (module docstring)."""
     ap = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
@@ -377,25 +389,19 @@ def main(argv: list[str] | None = None) -> int:
     )
     add_confirm_options(ap, "fresh colony starts", "the validation's", "DIR", "servobot validate")
     args = ap.parse_args(argv)
-    try:
+    out = args.out or args.folder / "choice"
+
+    def body() -> int:
         check_nonnegative(args.min_live, "--min-live", " robots")
         check_confirm_options(args)
+        rule = ChoiceRule(args.min_live, args.by)
         doc, code = run_choice(
-            args.folder,
-            ChoiceRule(args.min_live, args.by),
-            args.out or args.folder / "choice",
-            args.confirm,
-            args.confirm_seed,
-            args.workers,
+            args.folder, rule, out, args.confirm, args.confirm_seed, args.workers
         )
-    except InputError as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; choice.json is written only at the end", file=sys.stderr)
-        return 130
-    print(choice_markdown(doc), end="")
-    return code
+        print(choice_markdown(doc), end="")
+        return code
+
+    return run_choice_command(PROG, argv, out, body)
 
 
 if __name__ == "__main__":
