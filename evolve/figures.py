@@ -299,14 +299,17 @@ def figure_colony_choice(
     *,
     robots: int = 3,
     min_live: float = 2.0,
+    joined: tuple[str, ...] = ("chosen", "confirmation"),
 ) -> Path:
     """Finalists' colony validations in the plane physics chooses in: colony inner coverage
     (%, x) against robots live at the end per run (of ``robots``, y). Each point (``label``,
-    ``inner_pct``, ``live_per_run``, optional ``kind``: ``finalist``, ``chosen`` or
-    ``confirmation``) is drawn by its kind; a chosen finalist and its confirmation are joined.
-    Dashed: ``min_live``, the rule's floor (none at 0)."""
+    ``inner_pct``, ``live_per_run``, optional ``kind``: ``finalist``, ``chosen``, ``team`` or
+    ``confirmation``) is drawn by its kind; the points of the ``joined`` kinds (a chosen
+    finalist and its confirmation) are joined in order. Dashed: ``min_live``, the rule's floor
+    (none at 0)."""
     style = {"finalist": dict(marker="o", color="0.55", s=30),
              "chosen": dict(marker="o", color="C3", s=55),
+             "team": dict(marker="D", color="C0", s=50),
              "confirmation": dict(marker="*", color="C3", s=140)}  # fmt: skip
     fig, ax = plt.subplots(figsize=(6.0, 4.4))
     for kind, kw in style.items():
@@ -317,7 +320,7 @@ def figure_colony_choice(
         for p in pts:
             ax.annotate(p["label"], (p["inner_pct"], p["live_per_run"]), fontsize=6.5,
                         xytext=(4, 3), textcoords="offset points")  # fmt: skip
-    chosen = [p for p in points if p.get("kind") in ("chosen", "confirmation")]
+    chosen = [p for p in points if p.get("kind") in joined]
     for a, b in zip(chosen[:-1], chosen[1:], strict=True):
         ax.annotate("", (b["inner_pct"], b["live_per_run"]), (a["inner_pct"], a["live_per_run"]),
                     arrowprops=dict(arrowstyle="->", color="C3", lw=0.9))  # fmt: skip

@@ -363,6 +363,13 @@ def test_colony_stages_evolve_validate_and_report(colony_dir: Path) -> None:
               max(phys, key=lambda k: (live[k], phys[k]["inner_pct"])))  # fmt: skip
     inner = phys[chosen]["inner_pct"]
     assert f"else the most live): **pop{chosen}**, physics {inner:.1f} %" in text
+    # The team colony_team makes: the chosen finalist on robots 0–1, the best coverer on 2.
+    coverer = max(phys, key=lambda k: phys[k]["inner_pct"])
+    if coverer == chosen:
+        assert f"**pop{chosen}** both lives and covers most" in text
+    else:
+        assert f"robots 0–1 carry the liver **pop{chosen}** (as chosen above), robot 2 the " \
+            f"coverer **pop{coverer}**" in text
     for line in ("| colony |", "| colony_validation |", "## 6. A colony of 3 robots",
                  "](colony/figure9.png)", "](colony_validation/pop1/tracks0.png)",
                  "`rerun colony_validation/pop0/run0.rrd` (2 recordings in "

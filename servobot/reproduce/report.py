@@ -23,6 +23,7 @@ from servobot.reproduce.settings import ReproduceSettings
 from servobot.robustness.matrix_choice import choice_line as matrix_choice_line
 from servobot.robustness.report import MEAN_AND_DROP, matrix_table
 from servobot.validation.colony_choice import choice_line
+from servobot.validation.colony_team import team_line
 
 
 def _load_json(path: Path) -> dict[str, Any] | None:
@@ -415,7 +416,7 @@ def _colony_section(out: Path, s: ReproduceSettings) -> tuple[list[str], list[Pa
         )
     if info.get("gap_inner_pp") is not None:
         lines.append(f"| **all** | | | | **{info['gap_inner_pp']:+.1f}** | | | | | | | |")
-    lines += ["", choice_line(folder, r)]
+    lines += ["", choice_line(folder, r), "", team_line(folder, r)]
     lines += ["", "Tracks from the first colony start (table world left, physics right):", ""]
     for k in info["colony_finalists"]:
         sub = folder / f"pop{k}"

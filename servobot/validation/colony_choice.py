@@ -33,7 +33,7 @@ import argparse
 import dataclasses
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -155,27 +155,36 @@ def confirmation_of(report: dict[str, Any], folder: Path) -> Confirmation:
 
 
 def confirm_finalist(
-    c: Confirmation, starts: int, seed: int, out: Path, workers: int | None = None
+    c: Confirmation,
+    starts: int,
+    seed: int,
+    out: Path,
+    workers: int | None = None,
+    team: Sequence[Path] = (),
+    label: str = "confirm",
 ) -> None:
     """Run ``c``'s finalist as its validation did from ``starts`` fresh colony starts of
     ``seed`` (``colony_starts``, as ``servobot validate --robots R --seed S`` draws them) into
     ``out``, unless ``out`` already holds that validation finished: its report written and its
     run folder's record (``settings.json``) the plan's own, so the same chromosome, table,
-    starts and settings."""
+    starts and settings. ``team``: R chromosome files, robot r carrying file r, in place of
+    ``c``'s (``servobot.validation.colony_team``); ``label``: the progress bar's."""
     table, warning = load_checked_table(c.table)
     if warning:
         print(warning, file=sys.stderr)
     poses = colony_starts(np.random.default_rng(seed), starts, c.world, c.colony)
+    files = list(team) or [c.chromosome]
+    bits = np.stack([read_chromosome(f) for f in files]) if team else read_chromosome(c.chromosome)
     plan = plan_validation(
-        read_chromosome(c.chromosome), poses, table=table, kind=colony_kind(c.colony),
+        bits, poses, table=table, kind=colony_kind(c.colony),
         world=c.world, arena=c.arena, out_dir=out, max_steps=c.max_steps, seed=seed,
-        meta={"chromosome_file": str(c.chromosome), "seed": seed, "command": PROG},
+        meta={"chromosome_file": ", ".join(map(str, files)), "seed": seed, "command": PROG},
     )  # fmt: skip
     record = out / RECORD_FILE
     if (out / "report.json").is_file() and record.is_file():
         if json.loads(record.read_text()) == record_of(plan.record, "validate"):
             return
-    bar = RunBar("confirm", True, total=starts, unit="start")
+    bar = RunBar(label, True, total=starts, unit="start")
     try:
         execute([plan], make_executor(None, workers), lambda rec: bar())
     finally:
@@ -194,18 +203,8 @@ def choice_markdown(doc: dict[str, Any]) -> str:
         "live at the end of a run (mean); the qualifying finalist with the most colony inner "
         "coverage, else the one with the most robots live.",
         "",
-        "| finalist | runs | physics inner % | physics live / run | physics docks / robot | "
-        "table inner % | table live / run |",
-        "|---|---|---|---|---|---|---|",
+        *finalist_table(doc["finalists"], {doc["chosen"]: "chosen"}),
     ]
-    for i, r in enumerate(doc["finalists"]):
-        p, t = r["physics"], r["table"]
-        mark = " **(chosen)**" if i == doc["chosen_index"] else ""
-        lines.append(
-            f"| {r['name']}{mark} | {p['runs']} | {p['inner_pct']:.1f} | "
-            f"{p['live_per_run']:.2f} | {p['docks_per_robot']:.2f} | "
-            f"{t['inner_pct']:.1f} | {t['live_per_run']:.2f} |"
-        )
     c = doc.get("confirmation")
     if c:
         p, t = c["physics"], c["table"]
@@ -218,6 +217,25 @@ def choice_markdown(doc: dict[str, Any]) -> str:
             f"(gap table − physics {t['inner_pct'] - p['inner_pct']:+.1f} pp).",
         ]
     return "\n".join(lines) + "\n"
+
+
+def finalist_table(rows: list[dict[str, Any]], marks: dict[str, str]) -> list[str]:
+    """The finalists' rows (``finalist_rows``) as Markdown table lines, both worlds; a row named
+    in ``marks`` is marked with its text (``**(chosen)**``)."""
+    lines = [
+        "| finalist | runs | physics inner % | physics live / run | physics docks / robot | "
+        "table inner % | table live / run |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        p, t = r["physics"], r["table"]
+        mark = f" **({marks[r['name']]})**" if r["name"] in marks else ""
+        lines.append(
+            f"| {r['name']}{mark} | {p['runs']} | {p['inner_pct']:.1f} | "
+            f"{p['live_per_run']:.2f} | {p['docks_per_robot']:.2f} | "
+            f"{t['inner_pct']:.1f} | {t['live_per_run']:.2f} |"
+        )
+    return lines
 
 
 def choice_line(folder: Path, robots: int) -> str:
@@ -315,12 +333,18 @@ def choice_figure(doc: dict[str, Any], path: Path, robots: int) -> Path:
 
 
 def add_confirm_options(
-    ap: argparse.ArgumentParser, starts: str, seed_of: str, folder: str, runs_as: str
+    ap: argparse.ArgumentParser,
+    starts: str,
+    seed_of: str,
+    folder: str,
+    runs_as: str,
+    name: str = "choice",
 ) -> None:
     """A choice command's ``--confirm N``, ``--confirm-seed S``, ``--out OUT`` and ``--workers
-    N`` (also ``servobot.robustness.matrix_choice``): the chosen one runs again from N
-    ``starts`` (seed: ``seed_of`` seed + ``CONFIRM_SEED_OFFSET``), outputs in OUT (default
-    ``folder``/choice), the confirmation on ``runs_as``'s workers."""
+    N`` (also ``servobot.robustness.matrix_choice``, ``servobot.validation.colony_team``): the
+    chosen one runs again from N ``starts`` (seed: ``seed_of`` seed + ``CONFIRM_SEED_OFFSET``),
+    outputs ``name``.{json,md,png} in OUT (default ``folder``/``name``), the confirmation on
+    ``runs_as``'s workers."""
     ap.add_argument(
         "--confirm",
         type=int,
@@ -340,7 +364,7 @@ def add_confirm_options(
         type=Path,
         default=None,
         metavar="OUT",
-        help=f"where choice.{{json,md,png}} and confirm/ go (default {folder}/choice)",
+        help=f"where {name}.{{json,md,png}} and confirm/ go (default {folder}/{name})",
     )
     ap.add_argument("--workers", type=int, default=None, metavar="N",
                     help=f"the confirmation's worker processes ({runs_as}'s default)")  # fmt: skip
@@ -354,12 +378,12 @@ def check_confirm_options(args: argparse.Namespace) -> None:
 
 
 def run_choice_command(
-    prog: str, argv: list[str] | None, out: Path, body: Callable[[], int]
+    prog: str, argv: list[str] | None, out: Path, body: Callable[[], int], name: str = "choice"
 ) -> int:
     """A choice command's ``body`` under ``infra.command.run_command`` (also
-    ``servobot.robustness.matrix_choice``): bad input exits 2 naming it, Ctrl-C 130 and
-    SIGTERM 143 saying what is kept and how to go on."""
-    kept = f"what the confirmation finished in {out / 'confirm'}; choice.json is written at the end"
+    ``servobot.robustness.matrix_choice``, ``servobot.validation.colony_team``): bad input
+    exits 2 naming it, Ctrl-C 130 and SIGTERM 143 saying what is kept and how to go on."""
+    kept = f"what the runs finished in {out}; {name}.json is written at the end"
     resume = command_line(prog, sys.argv[1:] if argv is None else argv)
     return run_command(prog, body, lambda: Interrupted(kept, resume))
 
