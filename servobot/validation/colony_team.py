@@ -213,9 +213,9 @@ def team_line(folder: Path, robots: int) -> str:
     head = f"A team (`{PROG} {folder.parent.name}/{folder.name} --confirm 12`)"
     if liver is coverer:
         return f"{head}: **{liver['name']}** both lives and covers most: the team is it alone."
-    first = "robot 0" if robots == 2 else f"robots 0–{robots - 2}"
+    first = "robot 0 carries" if robots == 2 else f"robots 0–{robots - 2} carry"
     return (
-        f"{head}: {first} carry the liver **{liver['name']}** (as chosen above), robot "
+        f"{head}: {first} the liver **{liver['name']}** (as chosen above), robot "
         f"{robots - 1} the coverer **{coverer['name']}**, the finalist that covers most in "
         f"physics ({_figures(coverer['physics'])} on these runs); what such teams measured: "
         'docs/colony.md, "A team of liver and coverer".'
