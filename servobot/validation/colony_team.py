@@ -1,5 +1,7 @@
-"""A colony team chosen by physics from the finalists: ``python -m servobot.validation.colony_team
-DIR... [--coverers K] [--min-live L] [--confirm N [--confirm-seed S]] [--out OUT] [--workers N]``.
+"""A colony team of liver and coverer, chosen by physics from validated finalists.
+
+``python -m servobot.validation.colony_team DIR... [--coverers K] [--min-live L] [--confirm N
+[--confirm-seed S]] [--out OUT] [--workers N]``.
 
 Each DIR holds colony validations of finalists (``DIR/pop{k}/report.json``, as for
 ``servobot.validation.colony_choice``), all from the same colony starts with the same physics
