@@ -182,3 +182,19 @@ def test_bad_inputs_exit_2_naming_them(tmp_path, capsys) -> None:
 
 def test_the_reports_line_names_why_no_team_was_made(tmp_path) -> None:
     assert colony_team.team_line(tmp_path, 3).startswith("*(no team made by physics:")
+
+
+def test_the_team_runs_from_the_finalists_own_starts_however_drawn(tmp_path) -> None:
+    """A validation from given poses (``--start``, as the reproduction's colony validation runs
+    its own seeded starts): the team's ``team/`` run starts where the finalists did."""
+    c = tmp_path / "c.txt"
+    c.write_text(format_chromosome(DOCKER))
+    poses = [[400.0, 200.0, 90.0], [400.0, 300.0, 90.0], [360.0, 250.0, 0.0]]
+    argv = [str(c), "--robots", "3", "--steps", "2", "--workers", "1", "--no-progress"]
+    for pose in poses:
+        argv += ["--start", *map(str, pose)]
+    assert validate_cli.main([*argv, "--out", str(tmp_path / "val" / "pop0")]) == 0
+    assert main([str(tmp_path / "val"), "--workers", "1"]) == 0
+    same = json.loads((tmp_path / "val" / "team" / "team" / "report.json").read_text())
+    got = [[p[k] for k in "xyh"] for p in same["runs"][0]["start"]]
+    np.testing.assert_allclose(got, poses)

@@ -162,17 +162,20 @@ def confirm_finalist(
     workers: int | None = None,
     team: Sequence[Path] = (),
     label: str = "confirm",
+    poses: np.ndarray | None = None,
 ) -> None:
     """Run ``c``'s finalist as its validation did from ``starts`` fresh colony starts of
     ``seed`` (``colony_starts``, as ``servobot validate --robots R --seed S`` draws them) into
     ``out``, unless ``out`` already holds that validation finished: its report written and its
     run folder's record (``settings.json``) the plan's own, so the same chromosome, table,
     starts and settings. ``team``: R chromosome files, robot r carrying file r, in place of
-    ``c``'s (``servobot.validation.colony_team``); ``label``: the progress bar's."""
+    ``c``'s (``servobot.validation.colony_team``); ``label``: the progress bar's; ``poses``
+    ((N, R, 3)): these colony starts instead of drawn ones (``starts`` is then N)."""
     table, warning = load_checked_table(c.table)
     if warning:
         print(warning, file=sys.stderr)
-    poses = colony_starts(np.random.default_rng(seed), starts, c.world, c.colony)
+    if poses is None:
+        poses = colony_starts(np.random.default_rng(seed), starts, c.world, c.colony)
     files = list(team) or [c.chromosome]
     bits = np.stack([read_chromosome(f) for f in files]) if team else read_chromosome(c.chromosome)
     plan = plan_validation(

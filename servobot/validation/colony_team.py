@@ -181,12 +181,15 @@ def run_team(
         "table_test": stage_table_test(plan.chromosome, files),
     }
     code = 0
-    runs = [("same_starts", "team", seed, len(reports[liver]["runs"]))]
+    given = np.array(
+        [[[p[k] for k in "xyh"] for p in run["start"]] for run in reports[liver]["runs"]]
+    )
+    runs = [("same_starts", "team", seed, len(given), given)]
     if confirm:
         fresh = seed + CONFIRM_SEED_OFFSET if confirm_seed is None else confirm_seed
-        runs.append(("confirmation", "confirm", fresh, confirm))
-    for key, sub, s, n in runs:
-        confirm_finalist(plan, n, s, out / sub, workers, team=files, label=sub)
+        runs.append(("confirmation", "confirm", fresh, confirm, None))
+    for key, sub, s, n, poses in runs:
+        confirm_finalist(plan, n, s, out / sub, workers, team=files, label=sub, poses=poses)
         done = read_report(out / sub / "report.json")
         code = code or (EXIT_FAILED if done["summary"]["physics_errors"] else 0)
         doc[key] = {"seed": s, "folder": str(out / sub), **pool([done])}
