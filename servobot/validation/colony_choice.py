@@ -177,7 +177,7 @@ def confirm_finalist(
     if poses is None:
         poses = colony_starts(np.random.default_rng(seed), starts, c.world, c.colony)
     files = list(team) or [c.chromosome]
-    bits = np.stack([read_chromosome(f) for f in files]) if team else read_chromosome(c.chromosome)
+    bits = np.stack([read_chromosome(f) for f in team]) if team else read_chromosome(c.chromosome)
     plan = plan_validation(
         bits, poses, table=table, kind=colony_kind(c.colony),
         world=c.world, arena=c.arena, out_dir=out, max_steps=c.max_steps, seed=seed,
