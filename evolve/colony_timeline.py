@@ -68,7 +68,7 @@ from evolve.interpreter import (
     ColonyResult,
     run_colony,
 )
-from evolve.settings import ColonySettings, WorldSettings, settings_from_record
+from evolve.settings import ColonySettings, GASettings, WorldSettings, settings_from_record
 from evolve.starts import colony_starts
 from evolve.table import GaitTable, load_table
 from evolve.world import TableColony
@@ -334,9 +334,9 @@ def finalists(run_dir: str | Path) -> list[Path]:
 
 def run_settings(
     run_dir: str | Path,
-) -> tuple[WorldSettings, ColonySettings, np.ndarray | None, str | None]:
-    """The colony stage's ``WorldSettings``, ``ColonySettings`` and gait table (values and
-    source, or None where not recorded) from ``RUN_DIR/colony/settings.json``; fields the
+) -> tuple[WorldSettings, ColonySettings, GASettings | None, np.ndarray | None, str | None]:
+    """The colony stage's ``WorldSettings``, ``ColonySettings``, ``GASettings`` and gait table
+    (values and source); the GA settings and the table None where not recorded. Fields the
     record leaves out take their defaults (``ColonySettings.to_dict`` omits defaults)."""
     path = Path(run_dir, "colony", "settings.json")
     if not path.is_file():
@@ -349,10 +349,15 @@ def run_settings(
     world = settings_from_record(WorldSettings, doc.get("WorldSettings"), str(path), TimelineError)
     colony = settings_from_record(ColonySettings, doc.get("ColonySettings"), str(path),
                                   TimelineError)  # fmt: skip
+    ga = (
+        settings_from_record(GASettings, doc["GASettings"], str(path), TimelineError)
+        if "GASettings" in doc
+        else None
+    )
     table = doc.get("table") if isinstance(doc.get("table"), dict) else {}
     values = table.get("values")
     arr = None if values is None else np.asarray(values, dtype=np.float64)
-    return world, colony, arr, table.get("source")
+    return world, colony, ga, arr, table.get("source")
 
 
 def docks_over_time(
@@ -372,7 +377,7 @@ def docks_over_time(
     if others not in OTHERS:
         raise TimelineError(f"--others must be one of {', '.join(OTHERS)}, got {others!r}")
     paths = finalists(run_dir)
-    world, colony, recorded, source = run_settings(run_dir)
+    world, colony, _, recorded, source = run_settings(run_dir)
     if table is not None:
         gt = load_table(table)
         values, source = gt.values, str(table)

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 from pathlib import Path
 from typing import Any
 
@@ -42,8 +41,8 @@ import numpy as np
 
 from evolve.codec import read_chromosome
 from evolve.colony_stage import final_test
+from evolve.colony_timeline import run_settings
 from evolve.population import stage_seeds
-from evolve.settings import ColonySettings, GASettings, WorldSettings, settings_from_record
 from evolve.starts import colony_starts
 from evolve.table import GaitTable, validate_table
 from infra.bounds import check_int, check_nonnegative
@@ -133,18 +132,15 @@ def team_files(liver: Path, coverer: Path, robots: int, coverers: int) -> list[P
 def stage_table_test(liver: Path, files: list[Path]) -> dict[str, Any] | None:
     """The team's final table test (``evolve.colony_stage.final_test``) on the colony stage's
     own test starts and table world, when ``liver`` is a stage's finalist
-    (``RUN/colony/best_pop{k}.txt`` beside a colony ``settings.json``); None otherwise."""
-    record = liver.parent / "settings.json"
-    if not record.is_file():
+    (``RUN/colony/best_pop{k}.txt`` beside the stage's ``settings.json``, read by
+    ``evolve.colony_timeline.run_settings``); None otherwise."""
+    stage = liver.parent
+    if stage.name != "colony" or not (stage / "settings.json").is_file():
         return None
-    doc = json.loads(record.read_text())
-    if doc.get("stage") != "colony":
-        return None
-    name = str(record)
-    world = settings_from_record(WorldSettings, doc["WorldSettings"], name, InputError)
-    colony = settings_from_record(ColonySettings, doc["ColonySettings"], name, InputError)
-    ga = settings_from_record(GASettings, doc["GASettings"], name, InputError)
-    table = GaitTable(validate_table(doc["table"]["values"], name=f"{name}: table"))
+    world, colony, ga, values, _ = run_settings(stage.parent)
+    if ga is None or values is None:
+        raise InputError(f"{stage / 'settings.json'}: no GA settings or gait table recorded")
+    table = GaitTable(validate_table(values, name=f"{stage / 'settings.json'}: table"))
     test_seq, _ = stage_seeds(ga.seed, "colony", ga.populations)
     starts = colony_starts(
         np.random.Generator(np.random.PCG64(test_seq)), ga.test_starts, world, colony
@@ -152,7 +148,7 @@ def stage_table_test(liver: Path, files: list[Path]) -> dict[str, Any] | None:
     team = np.stack([read_chromosome(f) for f in files])[None]
     test = final_test(team, starts, table, world, colony)[0]
     keep = ("colony_inner_percent", "live_at_end_per_run", "docks_per_robot", "ends")
-    return {"stage": str(liver.parent), "starts": len(starts), **{k: test[k] for k in keep}}
+    return {"stage": str(stage), "starts": len(starts), **{k: test[k] for k in keep}}
 
 
 def run_team(
