@@ -30,20 +30,26 @@ GENES = {"a": "01 0100000 0100000 0100000 0100000\n",   # straight ahead
          "b": "01 0000011 0000011 0000011 0000011\n"}  # fmt: skip
 
 
-def hand_matrix(physics: dict[str, list[float | None]], table=(40.0, 45.0)) -> dict:
+def hand_matrix(
+    physics: dict[str, list[float | None]], table=(40.0, 45.0), docks: dict | None = None
+) -> dict:
     """A ``robustness.json`` document of two coverage chromosomes a, b and a navigation
-    section, with the given physics inner % per world."""
+    section, with the given physics inner % per world (and the section's dock rate per world,
+    ``docks``, else 0.5)."""
     names = ["a", "b"]
+    docks = docks or dict.fromkeys(physics, 0.5)
 
     def per(w: str) -> list[dict]:
-        return [{"physics_inner_percent": v, "ends": {}} for v in [*physics[w], None]]
+        return [*({"physics_inner_percent": v, "dock_rate": 1.0, "ends": {}} for v in physics[w]),
+                {"physics_inner_percent": None, "dock_rate": docks[w], "ends": {}}]  # fmt: skip
 
     return {
         "worlds": [{"name": w, "per_chromosome": per(w)} for w in physics],
         "table_per_chromosome": [
             *({"name": n, "file": f"{n}.txt", "mode": "coverage", "table_inner_percent": t}
               for n, t in zip(names, table, strict=True)),
-            {"name": "nav", "file": "nav.txt", "mode": "navigation", "table_inner_percent": None},
+            {"name": "nav", "file": "nav.txt", "mode": "navigation", "table_inner_percent": None,
+             "dock_rate": 0.9},
         ],
         "starts": 10, "seed": 0,
     }  # fmt: skip
@@ -91,11 +97,29 @@ def test_the_goals_worked_by_hand():
     assert against_goals({"heavy": 51.0})["largest_drop_vs_shipped_pp"] is None
 
 
-def test_a_matrix_without_coverage_chromosomes_is_refused():
+def test_navigation_sections_are_chosen_by_their_docking():
+    doc = hand_matrix({"shipped": [52.0, 70.0], "heavy": [52.0, 45.0]},
+                      docks={"shipped": 0.85, "heavy": None})  # fmt: skip
+    rows = finalist_rows(doc, "navigation")
+    assert [(r["name"], r["index"], r["table"]) for r in rows] == [("nav", 2, 90.0)]
+    assert rows[0]["physics"] == {"shipped": 85.0, "heavy": None}
+    # docking has no per-world goal; its worst world and drop below shipped still count
+    g = against_goals({"shipped": 85.0, "heavy": 60.0}, goal=None)
+    assert g == {"worst_world": "heavy", "worst_percent": 60.0, "every_world_at_goal": None,
+                 "largest_drop_vs_shipped_pp": 25.0}  # fmt: skip
+    with pytest.raises(InputError, match="--sections must be one of"):
+        ChoiceRule(sections="colony")
+
+
+def test_a_matrix_without_the_kind_chosen_is_refused():
     doc = hand_matrix({"shipped": [1.0, 2.0]})
-    doc["table_per_chromosome"] = doc["table_per_chromosome"][2:]
+    covers, nav = doc["table_per_chromosome"][:2], doc["table_per_chromosome"][2:]
+    doc["table_per_chromosome"] = nav
     with pytest.raises(InputError, match="no coverage chromosome"):
         finalist_rows(doc)
+    doc["table_per_chromosome"] = covers
+    with pytest.raises(InputError, match="no navigation section"):
+        finalist_rows(doc, "navigation")
 
 
 @pytest.fixture(scope="module")
@@ -142,6 +166,28 @@ def test_a_choice_confirmed_from_fresh_starts_end_to_end(tiny, tmp_path, capsys)
     assert choice_main([str(tiny), "--confirm", "1", "--workers", "1", "--out", str(out)]) == 0
     assert report.stat().st_mtime_ns == before
     assert json.loads((out / "choice.json").read_text()) == doc
+
+
+def test_a_navigation_section_chosen_and_confirmed_end_to_end(tiny, tmp_path, capsys):
+    out = tmp_path / "navchoice"
+    argv = [str(tiny), "--sections", "navigation", "--confirm", "1", "--workers", "1",
+            "--out", str(out)]  # fmt: skip
+    assert choice_main(argv) == 0
+    doc = json.loads((out / "choice.json").read_text())
+    matrix = json.loads((tiny / "robustness.json").read_text())
+    assert [r["name"] for r in doc["finalists"]] == ["nav"] and doc["chosen"] == "nav"
+    assert doc["finalists"][0]["physics"] == {
+        w["name"]: 100.0 * w["per_chromosome"][2]["dock_rate"] for w in matrix["worlds"]
+    }  # fmt: skip
+    again = json.loads((out / "confirm" / "robustness.json").read_text())
+    assert set(again["start_poses"]) == {"navigation"}
+    assert doc["confirmation"]["physics"] == {
+        w["name"]: 100.0 * w["per_chromosome"][0]["dock_rate"] for w in again["worlds"]
+    }  # fmt: skip
+    assert doc["confirmation"]["goals"]["every_world_at_goal"] is None
+    md = capsys.readouterr().out
+    assert "navigation section whose worst physics docking" in md and "goal" not in md
+    assert (out / "nav.txt").read_text().split() == (tiny.parent / "nav.txt").read_text().split()
 
 
 @pytest.mark.parametrize(

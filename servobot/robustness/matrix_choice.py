@@ -1,30 +1,33 @@
 """The finalist chosen by physics across the test matrix's worlds (issue 16):
 ``python -m servobot.robustness.matrix_choice MATRIX [--by worst|mean] [--worlds LIST]
-[--confirm N [--confirm-seed S]] [--out OUT] [--workers N]``.
+[--sections coverage|navigation] [--confirm N [--confirm-seed S]] [--out OUT] [--workers N]``.
 
 MATRIX is a finished ``servobot robustness`` folder of a run's finalists (one coverage
-chromosome per population). The GA's finalists differ in physics by more than their runs'
-spread, and no table world ranks them as physics does (docs/envelope.md), so the controller
-a user should run is chosen by its own physics runs, as the colony's is
-(``servobot.validation.colony_choice``).
+chromosome per population), or with ``--sections navigation`` of navigation sections (a
+navigation stage's candidates, judged by the share of runs that dock: the section a coverage
+stage is then evolved on, ``servobot evolve coverage --navigation OUT/NAME.txt``).
+
+The GA's finalists differ in physics by more than their runs' spread, and no table world
+ranks them as physics does (docs/envelope.md), so the controller a user should run is chosen
+by its own physics runs, as the colony's is (``servobot.validation.colony_choice``).
 
 Rule (``ChoiceRule``): the coverage chromosome whose *worst* physics world (``--by worst``,
 default: issue 16 asks for ≥ 50 % of the inner squares in every world) or *mean* over the
-worlds (``--by mean``) has the most inner coverage; ties go to the mean. The worlds that
-choose are the matrix's, or those of ``--worlds``, never the held-out one
-(``worlds.HELD_OUT``, ``long-legs``: no choice may look at it, so it still measures what was
-not tuned for). A choice among K
-finalists on the runs that scored them is biased upward, so ``--confirm N`` runs the chosen
-chromosome again through the matrix, every world of MATRIX (held-out ones included), from N
-fresh starts (seed ``--confirm-seed``, default MATRIX's seed + 1000), with MATRIX's table and
-steps, into ``OUT/confirm`` (a matrix folder: a finished one is read back, an interrupted one
-resumed): that measurement is the choice's figure.
+worlds (``--by mean``) has the most inner coverage (navigation sections: docking, with no
+goal); ties go to the mean. The worlds that choose are the matrix's, or those of
+``--worlds``, never the held-out one (``worlds.HELD_OUT``, ``long-legs``: no choice may look
+at it, so it still measures what was not tuned for). A choice among K finalists on the runs
+that scored them is biased upward, so ``--confirm N`` runs the chosen chromosome again
+through the matrix, every world of MATRIX (held-out ones included), from N fresh starts (seed
+``--confirm-seed``, default MATRIX's seed + 1000), with MATRIX's table and steps, into
+``OUT/confirm`` (a matrix folder: a finished one is read back, an interrupted one resumed):
+that measurement is the choice's figure.
 
 Writes ``OUT/choice.json``, ``OUT/choice.md`` and ``OUT/choice.png`` (the finalists × worlds,
 the confirmation beneath; OUT defaults to ``MATRIX/choice``) and prints the Markdown. Exit
 status: 0, 1 when a confirmation's physics run failed, 2 = bad input (not a finished matrix,
-no coverage chromosome, an unknown world, a world whose model changed since MATRIX ran), 130
-= interrupted (143 on SIGTERM).
+nothing of the kind chosen, an unknown world, a world whose model changed since MATRIX ran),
+130 = interrupted (143 on SIGTERM).
 """
 
 from __future__ import annotations
@@ -56,6 +59,11 @@ from servobot.validation.lone import NAVIGATION_MODE
 PROG = "python -m servobot.robustness.matrix_choice"
 CRITERIA = ("worst", "mean")
 """What a chromosome is scored by over the choosing worlds (module docstring)."""
+SECTIONS = ("coverage", "navigation")
+"""What is chosen: coverage chromosomes by inner coverage, navigation sections by docking."""
+MEASURE = {"coverage": ("inner coverage", "% of the 64 inner squares"),
+           "navigation": ("docking", "% of the runs that docked")}  # fmt: skip
+"""The physics figure each kind is chosen by, as the reports name it."""
 GOAL_PERCENT = 50.0
 """Issue 16's goal: inner coverage in every physics world, %."""
 GOAL_DROP_PP = 5.0
@@ -70,28 +78,43 @@ class ChoiceRule:
     """``worst``: the lowest physics inner % over the choosing worlds; ``mean``: their mean."""
     worlds: tuple[str, ...] | None = None
     """The worlds that choose; None: the matrix's. Never the held-out world."""
+    sections: str = "coverage"
+    """``coverage``: choose among the coverage chromosomes by physics inner %;
+    ``navigation``: among the navigation sections by physics docking %."""
 
     def __post_init__(self) -> None:
         if self.criterion not in CRITERIA:
             raise InputError(f"--by must be one of {list(CRITERIA)}, got {self.criterion!r}")
+        if self.sections not in SECTIONS:
+            raise InputError(f"--sections must be one of {list(SECTIONS)}, got {self.sections!r}")
         if self.worlds is not None and HELD_OUT.name in self.worlds:
             raise InputError(f"--worlds: {HELD_OUT.name!r} is held out; no choice may look at it")
 
 
-def finalist_rows(doc: dict[str, Any]) -> list[dict[str, Any]]:
-    """One row per coverage chromosome of ``robustness.json``'s ``doc``: its name, file,
-    table world inner % and physics inner % per world (None where no physics run finished)."""
+def figure_of(entry: dict[str, Any], side: str, sections: str = "coverage") -> float | None:
+    """The figure a chromosome is chosen by in one ``robustness.json`` entry (``side``:
+    ``table`` or ``physics``): inner % for coverage, docking % for navigation sections; None
+    where no run finished."""
+    if sections == "coverage":
+        return entry[f"{side}_inner_percent"]
+    return None if entry["dock_rate"] is None else 100.0 * entry["dock_rate"]
+
+
+def finalist_rows(doc: dict[str, Any], sections: str = "coverage") -> list[dict[str, Any]]:
+    """One row per chromosome of kind ``sections`` (``SECTIONS``) of ``robustness.json``'s
+    ``doc``: its name, file, and its figure (``figure_of``) in the table world and per
+    physics world (None where no physics run finished)."""
     rows = []
     for k, t in enumerate(doc["table_per_chromosome"]):
-        if t["mode"] == NAVIGATION_MODE:
+        if (t["mode"] == NAVIGATION_MODE) != (sections == "navigation"):
             continue
-        physics = {
-            w["name"]: w["per_chromosome"][k]["physics_inner_percent"] for w in doc["worlds"]
-        }
+        physics = {w["name"]: figure_of(w["per_chromosome"][k], "physics", sections)
+                   for w in doc["worlds"]}  # fmt: skip
         rows.append({"name": t["name"], "file": t["file"], "index": k,
-                     "table": t["table_inner_percent"], "physics": physics})  # fmt: skip
+                     "table": figure_of(t, "table", sections), "physics": physics})  # fmt: skip
     if not rows:
-        raise InputError("the matrix has no coverage chromosome to choose among")
+        kind = "coverage chromosome" if sections == "coverage" else "navigation section"
+        raise InputError(f"the matrix has no {kind} to choose among")
     return rows
 
 
@@ -124,17 +147,18 @@ def choose(rows: list[dict[str, Any]], worlds: list[str], rule: ChoiceRule = Cho
     return max(range(len(rows)), key=lambda i: (scores[i][rule.criterion], scores[i]["mean"]))
 
 
-def against_goals(physics: dict[str, float | None]) -> dict[str, Any]:
+def against_goals(physics: dict[str, float | None], goal: float | None = GOAL_PERCENT
+                  ) -> dict[str, Any]:  # fmt: skip
     """Issue 16's two per-world goals for one controller over every world it ran: its worst
-    world, whether each world reaches ``GOAL_PERCENT``, and the largest drop below
-    ``shipped`` (None without a shipped world)."""
+    world, whether each world reaches ``goal`` (None: no goal, as for docking), and the
+    largest drop below ``shipped`` (None without a shipped world)."""
     kept = {w: v for w, v in physics.items() if v is not None}
     worst = min(kept, key=kept.__getitem__)
     drop = None
     if kept.get(SHIPPED) is not None:
         drop = max(kept[SHIPPED] - v for v in kept.values())
     return {"worst_world": worst, "worst_percent": kept[worst],
-            "every_world_at_goal": all(v >= GOAL_PERCENT for v in kept.values()),
+            "every_world_at_goal": None if goal is None else all(v >= goal for v in kept.values()),
             "largest_drop_vs_shipped_pp": drop}  # fmt: skip
 
 
@@ -208,13 +232,15 @@ def run_choice(
     matrix: Path, rule: ChoiceRule, out: Path, starts: int = 0, seed: int | None = None,
     workers: int | None = None,
 ) -> tuple[dict[str, Any], int]:  # fmt: skip
-    """Choose among ``matrix``'s coverage chromosomes, confirm from ``starts`` fresh starts (0:
-    none), write ``out/choice.{json,md,png}``; the document and the exit code."""
+    """Choose among ``matrix``'s chromosomes of kind ``rule.sections``, confirm from
+    ``starts`` fresh starts (0: none), write ``out/choice.{json,md,png}``; the document and
+    the exit code."""
     doc, record = read_matrix(matrix)
-    rows = finalist_rows(doc)
+    rows = finalist_rows(doc, rule.sections)
     worlds = choosing_worlds(doc, rule)
+    goal = GOAL_PERCENT if rule.sections == "coverage" else None
     for r in rows:
-        r.update(score(r["physics"], worlds), goals=against_goals(r["physics"]))
+        r.update(score(r["physics"], worlds), goals=against_goals(r["physics"], goal))
     i = choose(rows, worlds, rule)
     out_doc: dict[str, Any] = {
         "matrix": str(matrix), "rule": dataclasses.asdict(rule), "choosing_worlds": worlds,
@@ -225,12 +251,12 @@ def run_choice(
     if starts:
         seed = doc["seed"] + CONFIRM_SEED_OFFSET if seed is None else seed
         again = confirm(doc, record, rows[i]["name"], starts, seed, out, workers)
-        physics = {w["name"]: w["per_chromosome"][0]["physics_inner_percent"]
+        physics = {w["name"]: figure_of(w["per_chromosome"][0], "physics", rule.sections)
                    for w in again["worlds"]}  # fmt: skip
         out_doc["confirmation"] = {
             "starts": starts, "seed": seed, "folder": str(out / "confirm"),
-            "table": again["table_per_chromosome"][0]["table_inner_percent"],
-            "physics": physics, **score(physics, worlds), "goals": against_goals(physics),
+            "table": figure_of(again["table_per_chromosome"][0], "table", rule.sections),
+            "physics": physics, **score(physics, worlds), "goals": against_goals(physics, goal),
             "ends": {w["name"]: w["per_chromosome"][0]["ends"] for w in again["worlds"]},
         }  # fmt: skip
         code = EXIT_FAILED if any(w["physics_errors"] for w in again["worlds"]) else 0
@@ -245,23 +271,27 @@ def _pct(v: float | None) -> str:
 
 
 def _goal_text(g: dict[str, Any]) -> str:
-    drop = g["largest_drop_vs_shipped_pp"]
+    drop, at_goal = g["largest_drop_vs_shipped_pp"], g["every_world_at_goal"]
     return (
-        f"worst world {g['worst_world']} {g['worst_percent']:.1f} % "
-        f"(≥ {GOAL_PERCENT:g} % in every world: {'yes' if g['every_world_at_goal'] else 'no'}); "
-        + ("no shipped world" if drop is None else
-           f"largest drop below shipped {drop:.1f} pp (goal ≤ {GOAL_DROP_PP:g})")
+        f"worst world {g['worst_world']} {g['worst_percent']:.1f} %"
+        + ("" if at_goal is None else
+           f" (≥ {GOAL_PERCENT:g} % in every world: {'yes' if at_goal else 'no'})")
+        + "; " + ("no shipped world" if drop is None else
+                  f"largest drop below shipped {drop:.1f} pp"
+                  + ("" if at_goal is None else f" (goal ≤ {GOAL_DROP_PP:g})"))
     )  # fmt: skip
 
 
 def choice_markdown(doc: dict[str, Any]) -> str:
     """``choice.json`` as Markdown: the finalists × worlds, the choice and its confirmation."""
     worlds, rule = doc["worlds"], doc["rule"]
+    sections = rule.get("sections", "coverage")
     held = [w for w in worlds if w not in doc["choosing_worlds"]]
     lines = [
         "# The finalist chosen by physics across the matrix's worlds", "",
         f"`{doc['matrix']}`, {doc['starts']} starts per world (seed {doc['seed']}). Rule: the "
-        f"coverage chromosome whose {rule['criterion']} physics inner coverage over "
+        f"{sections} {'chromosome' if sections == 'coverage' else 'section'} whose "
+        f"{rule['criterion']} physics {MEASURE[sections][0]} over "
         f"{', '.join(doc['choosing_worlds'])} is highest (ties: the mean)"
         + (f"; not choosing: {', '.join(held)}." if held else "."), "",
         "| chromosome | table | " + " | ".join(worlds) + " | worst (choosing) | mean (choosing) |",
@@ -278,7 +308,7 @@ def choice_markdown(doc: dict[str, Any]) -> str:
                      + " | ".join(f"**{_pct(c['physics'][w])}**" for w in worlds)
                      + f" | {c['worst']:.1f} | {c['mean']:.1f} |")  # fmt: skip
     chosen = doc["finalists"][doc["chosen_index"]]
-    lines += ["", "Physics inner coverage, % of the 64 inner squares; table: the exact table "
+    lines += ["", f"Physics {', '.join(MEASURE[sections])}; table: the exact table "
               "world (SPEC §3) on the same starts.", "",
               f"- {chosen['name']} on the matrix's starts: {_goal_text(chosen['goals'])}."
               ]  # fmt: skip
@@ -301,7 +331,8 @@ def choice_figure(doc: dict[str, Any], path: Path) -> Path:
         rows.append(f"{doc['chosen']}, {c['starts']} fresh starts")
         vals.append([c["table"], *(c["physics"][w] for w in worlds)])
     grid = np.array([[np.nan if v is None else v for v in row] for row in vals], dtype=float)
-    title = f"{doc['matrix']}: chosen by the {doc['rule']['criterion']} world — inner squares, %"
+    unit = "inner squares" if doc["rule"].get("sections", "coverage") == "coverage" else "docked"
+    title = f"{doc['matrix']}: chosen by the {doc['rule']['criterion']} world — {unit}, %"
     return heatmap(path, rows, ["table", *worlds], grid, title, last_row_apart=bool(c))
 
 
@@ -324,6 +355,13 @@ def main(argv: list[str] | None = None) -> int:
         help="comma-separated worlds that choose (default: the matrix's, less the "
         f"held-out {HELD_OUT.name})",
     )
+    ap.add_argument(
+        "--sections",
+        choices=SECTIONS,
+        default=ChoiceRule.sections,
+        help="choose among the coverage chromosomes by inner coverage (default) or among the "
+        "navigation sections by docking",
+    )
     add_confirm_options(ap, "fresh starts in every world", "the matrix's", "MATRIX",
                         "servobot robustness")  # fmt: skip
     args = ap.parse_args(argv)  # fmt: skip
@@ -332,8 +370,9 @@ def main(argv: list[str] | None = None) -> int:
     def body() -> int:
         check_confirm_options(args)
         worlds = None if args.worlds is None else tuple(args.worlds.split(","))
-        doc, code = run_choice(args.matrix, ChoiceRule(args.by, worlds), out, args.confirm,
-                               args.confirm_seed, args.workers)  # fmt: skip
+        rule = ChoiceRule(args.by, worlds, args.sections)
+        doc, code = run_choice(args.matrix, rule, out, args.confirm, args.confirm_seed,
+                               args.workers)  # fmt: skip
         print(choice_markdown(doc), end="")
         return code
 
