@@ -60,16 +60,19 @@ def candidates(stage: Path, top: int = TOP) -> list[dict[str, Any]]:
     final = max(r["generation"] for r in rows)
     ranked = sorted(rows, key=lambda r: (-r["selection_dock_rate"], -r["selection_fitness"]))
     finals = sorted((r for r in rows if r["generation"] == final), key=lambda r: r["population"])
-    kept: list[dict[str, Any]] = []
-    seen: set[bytes] = set()
-    for i, r in enumerate([*ranked, *finals]):
-        if i < len(ranked) and len(kept) >= top:
-            continue
+    kept: dict[bytes, dict[str, Any]] = {}
+
+    def keep(r: dict[str, Any]) -> None:
         bits = np.asarray(section(stage, r["population"], r["generation"], final), np.uint8)
-        if bits.tobytes() not in seen:
-            seen.add(bits.tobytes())
-            kept.append({**r, "bits": bits})
-    return kept
+        kept.setdefault(bits.tobytes(), {**r, "bits": bits})
+
+    for r in ranked:
+        if len(kept) == top:
+            break
+        keep(r)
+    for r in finals:
+        keep(r)
+    return list(kept.values())
 
 
 def write(stage: Path, out: Path, top: int = TOP) -> list[Path]:
