@@ -19,7 +19,11 @@ of §3 bit for bit:
    one factor drawn uniformly in [1 − ``pace_spread``, 1 + ``pace_spread``] and every dH by
    one in [1 − ``turn_spread``, 1 + ``turn_spread``], held for the run: a floor, a load or a
    servo that makes every cycle go further or turn less (the robot variants' calibrations,
-   docs/envelope.md).
+   docs/envelope.md);
+6. robot variants [beyond SPEC §9's four]: with probability ``variant_p`` a run's robot walks
+   another robot's calibrated gait table (``variant_tables``: the slippery, heavy or weak
+   ServoBot's, each measured by ``servobot calibrate``) instead of the stage's, one drawn per
+   run and robot: a change of robot is a table, not a spread of factors (docs/envelope.md).
 
 How training samples the envelope is part of it too: ``draws_per_start`` draws of every
 training start (their mean is the run's fitness) and a ``warmup_fraction`` of a stage's first
@@ -48,7 +52,7 @@ from typing import Any
 import numpy as np
 
 from evolve.settings import BLOCKING_RULES, ColonySettings, WorldSettings
-from evolve.table import COLUMNS, N_GAITS, GaitTable
+from evolve.table import COLUMNS, N_GAITS, GaitTable, load_table, validate_table
 from infra.errors import InputError
 from infra.io import read_json
 
@@ -66,7 +70,7 @@ STD_KEYS = tuple(f"{c}_std" for c in COLUMNS)
 """Columns of a gait table's per-cycle spread: F_std, T_std, dH_std."""
 TEST_IDS = {
     "figure9": 0, "selection": 1, "docking": 2, "colony_final": 3, "punctuation": 4,
-    "ranking": 5,
+    "ranking": 5, "screen": 6,
 }  # fmt: skip
 """Id of each test whose runs an envelope varies: key ``key_of_test(seed, test, ...)``."""
 
@@ -74,6 +78,25 @@ TEST_IDS = {
 class EnvelopeError(InputError, ValueError):
     """An envelope that cannot be used (bad field, bad file, a table without σ); the message
     names the field or file."""
+
+
+def _variant_rows(tables: Any) -> tuple:
+    """``Envelope.variant_tables`` as a tuple of tables of 16 (F, T, dH) tuples: each entry a
+    table's rows or the path of a calibration file (``load_table``)."""
+    if isinstance(tables, str | Path) or not isinstance(tables, tuple | list):
+        raise EnvelopeError(f"variant_tables must be a list of gait tables or calibration "
+                            f"files, got {tables!r:.60}")  # fmt: skip
+    out = []
+    for i, entry in enumerate(tables):
+        try:
+            if isinstance(entry, str | Path):
+                values = load_table(entry).values
+            else:
+                values = validate_table(entry, name="rows")
+        except (ValueError, TypeError) as exc:
+            raise EnvelopeError(f"variant_tables[{i}]: {exc}") from exc
+        out.append(tuple(tuple(float(v) for v in row) for row in values))
+    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -113,6 +136,15 @@ class Envelope:
     turn_spread: float = 0.0
     """[chosen] Turn: every gait's dH × one factor per run and robot, uniform in
     [1 − this, 1 + this] (dimensionless, in [0, 1))."""
+    variant_p: float = 0.0
+    """[chosen] Robot variants: the probability (0–1) that a run's robot walks one of
+    ``variant_tables``, chosen uniformly, instead of the stage's gait table; drawn once per run
+    and robot. The bias, pace and turn apply to the variant's rows, the scatter keeps the
+    stage table's σ."""
+    variant_tables: tuple = ()
+    """[chosen] With ``variant_p`` > 0: the variants' gait tables, each 16 rows of (F, T cm;
+    dH deg) in gait order. An envelope file may name calibration files instead (paths from
+    the current folder), read when it is loaded; the envelope records their rows."""
     station_blocking: str = "cancel"
     """[chosen] What the block does to a move it stops (``station_stops``): ``cancel`` it whole,
     turn included, or ``slide`` it along the block's face: the move keeps its component along
@@ -180,8 +212,9 @@ class Envelope:
         return self.body_front, self.body_back, self.body_side
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "variant_tables", _variant_rows(self.variant_tables))
         for name in ("scatter_scale", "bias_scale", "station_seen_p", "reach_units",
-                     "pace_spread", "turn_spread", "warmup_fraction", "station_margin",
+                     "variant_p", "pace_spread", "turn_spread", "warmup_fraction", "station_margin",
                      "body_front", "body_back", "body_side"):  # fmt: skip
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
@@ -195,9 +228,14 @@ class Envelope:
         for name in ("pace_spread", "turn_spread", "warmup_fraction"):
             if getattr(self, name) >= 1.0:
                 raise EnvelopeError(f"{name} must be in [0, 1), got {getattr(self, name)!r}")
-        if self.station_seen_p > 1.0:
-            raise EnvelopeError(f"station_seen_p must be a probability in [0, 1], got "
-                                f"{self.station_seen_p!r}")  # fmt: skip
+        for name in ("station_seen_p", "variant_p"):
+            if getattr(self, name) > 1.0:
+                raise EnvelopeError(f"{name} must be a probability in [0, 1], got "
+                                    f"{getattr(self, name)!r}")  # fmt: skip
+        if (self.variant_p > 0.0) != bool(self.variant_tables):
+            raise EnvelopeError(f"variant_p ({self.variant_p:g}) and variant_tables "
+                                f"({len(self.variant_tables)} tables) go together: both or "
+                                "neither")  # fmt: skip
         if not isinstance(self.station_strata, bool):
             raise EnvelopeError(f"station_strata must be true or false, got "
                                 f"{self.station_strata!r}")  # fmt: skip
@@ -302,7 +340,7 @@ TRAINING_DEFAULTS = {
 LATER_DEFAULTS = {
     **TRAINING_DEFAULTS, "unseen_stops_p": 0.0, "station_blocking": "cancel",
     "station_friction": 0.5, "pace_spread": 0.0, "turn_spread": 0.0, "station_margin": 0.0,
-    "body_front": 0.0, "body_back": 0.0, "body_side": 0.0,
+    "body_front": 0.0, "body_back": 0.0, "body_side": 0.0, "variant_p": 0.0, "variant_tables": (),
 }  # fmt: skip
 """Fields added after the first envelopes were recorded, at their defaults (left out of
 ``to_dict``)."""

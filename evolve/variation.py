@@ -9,7 +9,9 @@ and of where it is used (``evolve.draws``), never of a stream's state:
 - a robot's run key: the key folded, then the start index s, then the robot r (0 alone);
 - per run (``RobotDraws``, from the run key and a stream tag): the bias of each gait's row,
   ``STREAM_BIAS`` (triple g of ``normal3``), the activation distance, ``STREAM_REACH``, and
-  the pace and turn factors, words 0 and 1 of ``STREAM_PACE``;
+  the pace and turn factors, words 0 and 1 of ``STREAM_PACE``, and whether and which robot
+  variant it is, one uniform u of ``STREAM_VARIANT`` (a variant when u < ``variant_p``: table
+  ⌊u / variant_p × K⌋ of the K ``variant_tables``);
 - per run of the whole colony: whether the station block is there, ``STREAM_STATION`` of robot
   0's run key, and whether an unseen block stops motion, ``STREAM_STOPS`` of it (one station
   for every robot: ``Variation.station``);
@@ -45,7 +47,8 @@ from evolve.envelope import (
 from evolve.settings import WorldSettings
 from evolve.table import N_GAITS, validate_table
 
-STREAM_SCATTER, STREAM_BIAS, STREAM_REACH, STREAM_STATION, STREAM_STOPS, STREAM_PACE = range(1, 7)
+(STREAM_SCATTER, STREAM_BIAS, STREAM_REACH, STREAM_STATION, STREAM_STOPS, STREAM_PACE,
+ STREAM_VARIANT) = range(1, 8)  # fmt: skip
 """Stream tags: what a draw of a run is for."""
 E_SCATTER, E_X0, E_Y0, E_X1, E_Y1, E_RADIUS, E_SLIDE, E_FRICTION, E_FRONT, E_BACK, E_SIDE = (
     range(11))  # fmt: skip
@@ -156,14 +159,20 @@ class Variation:
         """Robot ``robot``'s draws for the run from start index ``start``."""
         env = self.envelope
         key = self.run_key(start, robot)
-        rows = np.array(self.table, dtype=np.float64)
+        table = self.table
+        if env.variant_p > 0.0:
+            u = unit(absorb(key, STREAM_VARIANT))
+            if u < env.variant_p:
+                k = len(env.variant_tables)
+                table = np.asarray(env.variant_tables[min(int(u / env.variant_p * k), k - 1)])
+        rows = np.array(table, dtype=np.float64)
         if env.bias_scale > 0.0:
             h = absorb(key, STREAM_BIAS)
             for g in range(N_GAITS):
                 z = normal3(h, g)
                 for c in range(3):
                     rows[g, c] = (
-                        float(self.table[g, c]) + env.bias_scale * float(self.sigma[g, c]) * z[c]
+                        float(table[g, c]) + env.bias_scale * float(self.sigma[g, c]) * z[c]
                     )
         for cols, spread, word in (([0, 1], env.pace_spread, 0), ([2], env.turn_spread, 1)):
             if spread > 0.0:

@@ -71,13 +71,20 @@ SLIDING = dataclasses.replace(
     HALF_IN_THE_WAY, station_blocking="slide", pace_spread=0.15, turn_spread=0.3
 )
 """As ``HALF_IN_THE_WAY``, a move the block stops sliding along it, pace and turn drawn."""
+SHORT_STRIDES = PAPER_TABLE * np.array([0.85, 0.85, 1.1])
+TURNS_LESS = PAPER_TABLE * np.array([1.0, 1.0, 0.7])
+"""Two robot variants' tables: strides 15 % shorter and turns 10 % wider; turns 30 % smaller."""
+VARIANTS = Envelope(variant_p=0.6, variant_tables=(SHORT_STRIDES.tolist(), TURNS_LESS.tolist()))
+"""A run's robot one of the two variants in 60 % of the runs."""
 EVERY_ENVELOPE = pytest.mark.parametrize(
     "envelope",
     [EVERYTHING, LOUD, IN_THE_WAY, HALF_IN_THE_WAY, SLIDING,
      dataclasses.replace(SLIDING, station_margin=3.0),
-     dataclasses.replace(SLIDING, body_front=20.0, body_back=14.0, body_side=11.0)],
+     dataclasses.replace(SLIDING, body_front=20.0, body_back=14.0, body_side=11.0),
+     dataclasses.replace(SLIDING, bias_scale=1.0, variant_p=0.6,
+                         variant_tables=VARIANTS.variant_tables)],
     ids=["everything", "loud", "in the way", "half in the way", "sliding, paced",
-         "sliding, margin 3", "sliding, oval body"],
+         "sliding, margin 3", "sliding, oval body", "sliding, biased robot variants"],
 )  # fmt: skip
 """The kernel = interpreter cases: every aspect, loud scales, the block's stop rules."""
 KEY = (7, 3)
@@ -423,6 +430,51 @@ def test_pace_and_turn_scale_every_gait_by_one_factor_per_run():
     assert world.pose()[2] == pytest.approx(8 * rows[8, 2] % 360.0, abs=1e-9)
 
 
+def test_robot_variants_are_drawn_per_run_and_robot_and_walked_exactly():
+    """``variant_p`` 0.6 over two variant tables: a run's robot walks the first in 30 % of the
+    runs, the second in 30 %, the stage's table in the rest, its rows exactly the table's; the
+    draw is one per run and robot, the same for every individual (it depends on the key, the
+    start and the robot only), and the table world walks the drawn rows."""
+    var = Variation.of(VARIANTS, PAPER_TABLE, WORLD, KEY, 15.0)
+    tables = [PAPER_TABLE, SHORT_STRIDES, TURNS_LESS]
+    picks = []
+    for s in range(3000):
+        rows = var.robot(s, s % 3).rows
+        match = [k for k, t in enumerate(tables) if np.array_equal(rows, t)]
+        assert len(match) == 1, s
+        picks.append(match[0])
+    share = np.bincount(picks, minlength=3) / len(picks)
+    np.testing.assert_allclose(share, [0.4, 0.3, 0.3], atol=0.03)  # 3.5 binomial s.e.
+    robots = [[int(np.array_equal(var.robot(s, r).rows, PAPER_TABLE)) for r in range(3)]
+              for s in range(200)]  # fmt: skip
+    assert any(len(set(row)) > 1 for row in robots)  # robots of one run draw apart
+    same = Variation.of(VARIANTS, PAPER_TABLE, WORLD, KEY, 15.0)
+    assert all(np.array_equal(same.robot(s, 0).rows, var.robot(s, 0).rows) for s in range(50))
+    # a run on the short-stride robot walks as the plain world of that table: 8 cycles of
+    # gait 0 turn it 8 × 1.1 × the paper's dH
+    s = next(i for i in range(3000) if np.array_equal(var.robot(i, 0).rows, SHORT_STRIDES))
+    world = TableWorld(PAPER_TABLE, 250.0, 100.0, 0.0, envelope=VARIANTS, envelope_key=KEY,
+                       start=s)  # fmt: skip
+    plain = TableWorld(SHORT_STRIDES, 250.0, 100.0, 0.0)
+    for _ in range(8):
+        world.step(0), plain.step(0)
+    assert world.pose() == plain.pose()
+    assert world.pose()[2] == pytest.approx(8 * 1.1 * PAPER_TABLE[0, 2] % 360.0, abs=1e-9)
+
+
+def test_variant_tables_load_from_calibration_files_and_are_recorded_as_rows(tmp_path):
+    cal = tmp_path / "slippery.json"
+    cal.write_text(json.dumps(table_to_json(SHORT_STRIDES)))
+    path = tmp_path / "env.json"
+    path.write_text(json.dumps({"variant_p": 0.5, "variant_tables": [str(cal)]}))
+    env = load_envelope(path)
+    np.testing.assert_array_equal(np.array(env.variant_tables[0]), SHORT_STRIDES)
+    doc = json.loads(env.to_json())
+    assert doc["variant_tables"] == [SHORT_STRIDES.tolist()] and env.varies
+    assert Envelope.from_dict(doc) == env
+    assert "variant_p" not in DEFAULT.to_dict() and "variant_tables" not in DEFAULT.to_dict()
+
+
 def test_station_stops_cancels_a_move_into_the_block():
     pose = (460.0, 250.0, 90.0)  # gait 0 would bring the centre to 471.6: 8.4 from the block
     world = TableWorld(PAPER_TABLE, *pose, envelope=STOPS_ONLY)
@@ -686,6 +738,15 @@ OVAL = {"body_front": 20, "body_back": 15, "body_side": 12}
         (OVAL, "an oval body .* needs station_stops"),
         ({"station_stops": True, "station_margin": 3, **OVAL}, "station_margin 3 widens the disc"),
         ({"pace_spread": 1.0}, r"pace_spread must be in \[0, 1\)"),
+        ({"variant_p": 0.5}, r"variant_p \(0.5\) and variant_tables \(0 tables\) go together"),
+        ({"variant_tables": [PAPER_TABLE.tolist()]}, r"variant_p \(0\) and variant_tables"),
+        ({"variant_p": 1.5, "variant_tables": [PAPER_TABLE.tolist()]}, "variant_p must be a prob"),
+        ({"variant_p": 0.5, "variant_tables": [PAPER_TABLE[:15].tolist()]},
+         r"variant_tables\[0\]: rows: expected shape \(16, 3\)"),
+        ({"variant_p": 0.5, "variant_tables": ["no/such/table.json"]},
+         r"variant_tables\[0\]: .*no/such/table.json"),
+        ({"variant_p": 0.5, "variant_tables": "runs/cal/gait_table.json"},
+         "variant_tables must be a list"),
         ({"turn_spread": -0.1}, "turn_spread must be ≥ 0"),
         ({"draws_per_start": 1.5}, "draws_per_start must be an integer ≥ 1"),
         ({"warmup_fraction": -0.1}, "warmup_fraction must be ≥ 0"),
