@@ -113,6 +113,7 @@ def test_bad_inputs_exit_2_naming_them(run, variant, tmp_path, capsys):
         (base + ["--top", "-1"], "--top must be ≥ 0"),
         ([str(tmp_path)] + base[1:], "best_pop0.txt: missing"),
         (base[:2] + [","] + base[3:], "--variants names no calibration file"),
+        (base + ["--table", str(variant)], "a gait table is named twice"),
     ]
     for argv, match in cases:
         assert main(argv) == 2, argv

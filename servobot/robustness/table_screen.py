@@ -196,6 +196,8 @@ def main(argv: list[str] | None = None) -> int:
         variants = [v for v in a.variants.split(",") if v]
         if not variants:
             raise InputError("--variants names no calibration file")
+        if len({a.table, *variants}) < 1 + len(variants):
+            raise InputError("a gait table is named twice (--table and --variants)")
         out = check_output_dir(a.out or a.run / "screen")
         if (out / "screen.json").exists():
             raise InputError(f"{out} already holds a screen (screen.json): its candidate files "
