@@ -66,15 +66,23 @@ def _full(section: np.ndarray, navigation: np.ndarray) -> np.ndarray:
     return np.concatenate([section, navigation]).astype(np.uint8)
 
 
+def final_populations(run: Path) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
+    """(population, generation, coverage sections (N, 8, 30), training fitness (N,)) of each
+    population's last saved generation."""
+    out = []
+    for pop, gens in sorted(_saved(run).items()):
+        last = max(gens)
+        with np.load(gens[last]) as d:
+            out.append((pop, last, d["population"], d["fitness"]))
+    return out
+
+
 def top_genomes(run: Path, per_population: int, fraction: float = TOP_FRACTION) -> list[Genome]:
     """``per_population`` distinct genomes of each final population's top ``fraction`` (by the
     last generation's training fitness), evenly spaced over those ranks, best first."""
     navigation = navigation_of(run)
     out: list[Genome] = []
-    for pop, gens in sorted(_saved(run).items()):
-        last = max(gens)
-        with np.load(gens[last]) as d:
-            population, fitness = d["population"], d["fitness"]
+    for pop, last, population, fitness in final_populations(run):
         order = np.argsort(-fitness, kind="stable")[: max(1, round(fraction * len(fitness)))]
         seen: set[bytes] = set()
         distinct = []

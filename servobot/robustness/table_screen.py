@@ -45,7 +45,7 @@ from evolve.table import load_table
 from infra.command import Interrupted, run_command
 from infra.errors import InputError
 from infra.io import atomic_write_json, check_output_dir
-from servobot.robustness.ranking import _full, _saved, navigation_of
+from servobot.robustness.ranking import _full, final_populations, navigation_of
 
 PROG = "python -m servobot.robustness.table_screen"
 PER_POPULATION = 1
@@ -57,17 +57,6 @@ DRAWS = 2
 SCREEN_STREAM = 16
 """Second word of the screen's start seed, so its starts are not the matrix's
 (``default_rng(seed)``)."""
-
-
-def final_populations(run: Path) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
-    """(population, generation, bits (N, 8, 30), training fitness (N,)) of each population's
-    last saved generation."""
-    out = []
-    for pop, gens in sorted(_saved(run).items()):
-        last = max(gens)
-        with np.load(gens[last]) as d:
-            out.append((pop, last, d["population"], d["fitness"]))
-    return out
 
 
 def candidates(run: Path) -> list[dict[str, Any]]:
