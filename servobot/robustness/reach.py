@@ -33,6 +33,7 @@ from infra.errors import InputError
 from infra.io import atomic_write, write_report
 from servobot.robustness.floor import read_matrix
 from servobot.robustness.matrix import RUNS_DIR
+from servobot.robustness.report import DPI
 from servobot.validation.lone import NAVIGATION_MODE
 
 PROG = "python -m servobot.robustness.reach"
@@ -133,7 +134,7 @@ def figure(doc: dict[str, Any], path: Path) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     try:
-        return atomic_write(path, lambda p: fig.savefig(p, dpi=130, bbox_inches="tight"))
+        return atomic_write(path, lambda p: fig.savefig(p, dpi=DPI, bbox_inches="tight"))
     finally:
         plt.close(fig)
 
