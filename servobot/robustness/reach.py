@@ -21,7 +21,6 @@ Units: table units (1 unit = 1 cm of the MuJoCo arena), SPEC §1's frame (x east
 from __future__ import annotations
 
 import argparse
-import sys
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -29,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from evolve.settings import WorldSettings
+from infra.command import Interrupted, run_command
 from infra.errors import InputError
 from infra.io import atomic_write, write_report
 from servobot.robustness.floor import read_matrix
@@ -147,15 +147,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, metavar="DIR",
                     help="where reach.{json,md,png} go (default MATRIX)")  # fmt: skip
     a = ap.parse_args(argv)
-    try:
+
+    def body() -> int:
         doc = matrix_reach(a.matrix)
-    except InputError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    out = a.out or a.matrix
-    write_report(out, "reach", doc, markdown(doc))
-    figure(doc, out / "reach.png")
-    return 0
+        out = a.out or a.matrix
+        write_report(out, "reach", doc, markdown(doc))
+        figure(doc, out / "reach.png")
+        return 0
+
+    return run_command(PROG, body, lambda: Interrupted("the files written so far", PROG))
 
 
 if __name__ == "__main__":
