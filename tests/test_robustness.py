@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -136,6 +137,12 @@ def _without_wall_times(report: dict) -> list[dict]:
             for r in report["runs"]]  # fmt: skip
 
 
+def _placeless(d: dict) -> dict:
+    """A matrix document without its worlds' model paths (the weak world's model file lies in
+    each folder)."""
+    return d | {"worlds": [{k: v for k, v in w.items() if k != "model"} for w in d["worlds"]]}
+
+
 def test_a_grown_matrix_takes_the_earlier_runs_and_equals_one_run_in_full(matrix, tmp_path):
     """Start poses and servo noise of run k depend on the seed and k alone, so a matrix grown
     from 1 start to 2 takes each cell's first run from the earlier one and runs only the
@@ -147,10 +154,7 @@ def test_a_grown_matrix_takes_the_earlier_runs_and_equals_one_run_in_full(matrix
                      on_run=runs.append, on_skip=taken.append)  # fmt: skip
     assert [r["index"] for r in runs] == [1, 1, 1, 1] and taken == [1, 1, 1, 1]
     full = run_matrix(files, tmp_path / "full", grown, executor=SerialExecutor())
-    def placeless(d: dict) -> dict:  # the weak world's model file lies in each folder
-        return d | {"worlds": [{k: v for k, v in w.items() if k != "model"} for w in d["worlds"]]}
-
-    assert placeless(doc) == placeless(full)
+    assert _placeless(doc) == _placeless(full)
     for w in WORLDS:
         for name in ("c16", "nav"):
             a, b = (tmp_path / d / "runs" / w / name for d in ("grown", "full"))
@@ -174,6 +178,33 @@ def test_reuse_takes_nothing_from_other_starts_and_refuses_bad_folders(matrix, t
         run_matrix(files, out, SETTINGS, executor=SerialExecutor(), resume=True, reuse=out)
     with pytest.raises(RobustnessError, match="--rrd"):
         run_matrix(files, tmp_path / "r", dataclasses.replace(SETTINGS, rrd=True), reuse=out)
+
+
+def test_reuse_gathers_a_matrix_from_folders_run_controller_by_controller(matrix, tmp_path):
+    """``--reuse A --reuse B``: each cell's runs come from the first folder that has them, so
+    a matrix whose controllers ran in separate folders is gathered without running again."""
+    out, files, doc = matrix
+    parts = {}
+    for name, other in (("c16", "nav"), ("nav", "c16")):
+        parts[name] = tmp_path / f"only_{name}"
+        shutil.copytree(out, parts[name])
+        for w in WORLDS:
+            shutil.rmtree(parts[name] / "runs" / w / other)
+    gathered = tmp_path / "gathered"
+    argv = ["robustness", *map(str, files), *ARGV, "--out", str(gathered)]
+    assert servobot([*argv, "--reuse", str(parts["c16"]), "--reuse", str(parts["nav"])]) == 0
+    for w in WORLDS:
+        for name in ("c16", "nav"):
+            meta = json.loads((gathered / "runs" / w / name / "report.json").read_text())["meta"]
+            assert meta["reused_runs"] == 1 and meta["reused_from"] == str(parts[name])
+    assert _placeless(json.loads((gathered / "robustness.json").read_text())) == _placeless(doc)
+    first = tmp_path / "first"  # both folders hold the c16 cells: the first named gives them
+    argv = ["robustness", *map(str, files), *ARGV, "--out", str(first)]
+    assert servobot([*argv, "--reuse", str(out), "--reuse", str(parts["c16"])]) == 0
+    for w in WORLDS:
+        for name in ("c16", "nav"):
+            meta = json.loads((first / "runs" / w / name / "report.json").read_text())["meta"]
+            assert meta["reused_from"] == str(out)
 
 
 class _StopAfter(SerialExecutor):

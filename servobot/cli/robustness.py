@@ -91,11 +91,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--reuse",
         type=Path,
-        default=None,
+        action="append",
+        default=[],
         metavar="DIR",
         help="an earlier matrix folder: take its runs this matrix would repeat (same "
         "chromosome, table, settings and start at the same index, e.g. the first N when "
-        "--starts grows) instead of running them again",
+        "--starts grows, or matrices run controller by controller) instead of running them "
+        "again; repeat it to take runs from several (the first that has a run gives it)",
     )
     p.add_argument(
         "--share",

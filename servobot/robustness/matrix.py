@@ -36,13 +36,15 @@ to one worker together and simulate the gait cycles they have in common once
 (``servo_mj.world.shared_physics``): the same records, for controllers of one population
 about half the physics.
 
-Reuse: ``reuse`` names an earlier matrix folder whose runs this one may take instead of
+Reuse: ``reuse`` names earlier matrix folders whose runs this one may take instead of
 running them again, e.g. a matrix grown from 10 starts to 30 (start poses and servo noise of
-run k depend on the seed and k alone, so its first 10 runs are the earlier ones). A run is
-taken when its cell (same world, controller name) holds the same chromosome, table values
-and validation settings (model hash, steps, seeds) and the run started from the same pose at
-the same index with a physics result; the cell's report lists how many it took
-(``meta.reused_runs``). Only the inputs are compared, not the code that ran them.
+run k depend on the seed and k alone, so its first 10 runs are the earlier ones), or one
+gathered from matrices run controller by controller. A run is taken when its cell (same
+world, controller name) holds the same chromosome, table values and validation settings
+(model hash, steps, seeds) and the run started from the same pose at the same index with a
+physics result, from the first folder (in the order given) that has it; the cell's report
+lists how many it took and from where (``meta.reused_runs``, ``meta.reused_from``). Only the
+inputs are compared, not the code that ran them.
 """
 
 from __future__ import annotations
@@ -52,7 +54,7 @@ import hashlib
 import json
 import shutil
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -328,17 +330,16 @@ def _belonging(runs: list[dict[str, Any]], expected: dict[str, Any]) -> list[dic
     ]  # fmt: skip
 
 
-def check_reuse(reuse: Path | None, out: Path, s: RobustnessSettings) -> None:
-    """``reuse`` is an earlier matrix folder other than ``out`` and the runs write no
+def check_reuse(reuse: Sequence[Path], out: Path, s: RobustnessSettings) -> None:
+    """Each of ``reuse`` is an earlier matrix folder other than ``out`` and the runs write no
     recordings (a taken run has none here), else ``RobustnessError`` naming it."""
-    if reuse is None:
-        return
-    if not (reuse / RECORD_FILE).is_file() or not (reuse / RUNS_DIR).is_dir():
-        raise RobustnessError(f"--reuse {reuse}: not a robustness matrix folder "
-                              f"(no {RECORD_FILE} and {RUNS_DIR}/)")  # fmt: skip
-    if reuse.resolve() == out.resolve():
-        raise RobustnessError(f"--reuse {reuse}: the output folder itself; use --resume")
-    if s.rrd:
+    for folder in reuse:
+        if not (folder / RECORD_FILE).is_file() or not (folder / RUNS_DIR).is_dir():
+            raise RobustnessError(f"--reuse {folder}: not a robustness matrix folder "
+                                  f"(no {RECORD_FILE} and {RUNS_DIR}/)")  # fmt: skip
+        if folder.resolve() == out.resolve():
+            raise RobustnessError(f"--reuse {folder}: the output folder itself; use --resume")
+    if reuse and s.rrd:
         raise RobustnessError("--reuse with --rrd: the reused runs have no recordings here")
 
 
@@ -399,7 +400,7 @@ def run_matrix(
     workers: int | None = None,
     resume: bool = False,
     force: bool = False,
-    reuse: Path | None = None,
+    reuse: Path | Sequence[Path] = (),
     share: bool = False,
     on_run: Callable[[dict[str, Any]], None] | None = None,
     on_skip: Callable[[int], None] | None = None,
@@ -411,7 +412,7 @@ def run_matrix(
     cell's starts as one batch (each cell's report is written when its last run ends);
     ``on_run(record)`` is called as each physics run finishes, ``on_skip(n)`` with a cell's run
     count when a finished cell is read back (``resume``) and with the runs taken from the
-    matrix folder ``reuse`` (module docstring) or kept from an interrupted run of this one;
+    matrix folders ``reuse`` (module docstring) or kept from an interrupted run of this one;
     ``share``: runs from one start in one world simulate the gait cycles they share once
     (``servobot.validation.lone.execute``; the same records); ``log(message)`` with warnings (a
     table file without a model hash). Every input is checked before the folder is
@@ -425,7 +426,7 @@ def run_matrix(
         log(warning)
     worlds = resolve_worlds(settings.worlds)
     out = Path(out)
-    reuse = None if reuse is None else Path(reuse)
+    reuse = [Path(reuse)] if isinstance(reuse, str | Path) else [Path(f) for f in reuse]
     check_reuse(reuse, out, settings)
     cells = plan_cells(controllers, worlds, out, settings)
     info = table_info(table)
@@ -449,9 +450,12 @@ def run_matrix(
                 continue
             kept = [] if settings.rrd else kept_runs(out, cell, expected)  # no recordings kept
             have = {r["index"] for r in kept}
-            reused = [] if reuse is None else [
-                r for r in reusable_runs(cell, expected, reuse) if r["index"] not in have
-            ]  # fmt: skip
+            reused, sources = [], []
+            for folder in reuse:
+                new = [r for r in reusable_runs(cell, expected, folder) if r["index"] not in have]
+                have |= {r["index"] for r in new}
+                reused += new
+                sources += [str(folder)] if new else []
             taken = kept + reused
             if taken and on_skip is not None:
                 on_skip(len(taken))
@@ -464,7 +468,8 @@ def run_matrix(
                 workers=None if executor else workers,
                 meta={"world": cell.world.name, "chromosome_file": str(cell.controller.file),
                       "command": "servobot robustness"}
-                     | ({"reused_runs": len(reused), "reused_from": str(reuse)} if reused else {}),
+                     | ({"reused_runs": len(reused), "reused_from": ", ".join(sources)}
+                        if reused else {}),
                 done=taken,
             ))  # fmt: skip
         keep = None if settings.rrd else lambda i, r: keep_run(out, todo_cells[i], r)

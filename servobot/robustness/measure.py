@@ -232,7 +232,7 @@ def _measure(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     if a.tune and a.per_population == 0:
         p.error("--tune scores the top-20 % sample: give --per-population ≥ 1")
     check_workers(a.workers)
-    reuse = None if a.reuse is None else a.reuse / "matrix"
+    reuse = [] if a.reuse is None else [a.reuse / "matrix"]
     check_reuse(reuse, a.out / "matrix", RobustnessSettings())  # before anything is written
     executor = None if a.executor is None else make_executor(a.executor, a.workers)
     if isinstance(executor, RayExecutor):

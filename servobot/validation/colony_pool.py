@@ -106,17 +106,20 @@ def replay(
     return {**report, "runs": runs}
 
 
-def pool(reports: list[dict[str, Any]]) -> dict[str, Any]:
+def pool(
+    reports: list[dict[str, Any]], table_reports: list[dict[str, Any]] | None = None
+) -> dict[str, Any]:
     """Per world, over the runs of every colony report whose physics finished: ``runs``,
     ``inner_pct`` (colony inner squares, % of the inner squares), ``docks_per_robot``,
     ``live_per_run``, ``robots``, ``ends`` and ``ends_at_station`` (robots by end name);
-    ``gap_inner_pp`` = table − physics."""
+    ``gap_inner_pp`` = table − physics. ``table_reports`` (replays of ``reports``) give the
+    table world's runs in their place."""
     out: dict[str, Any] = {}
     for w in WORLDS:
         inner, docks, live = [], [], []
         ends: Counter[str] = Counter()
         at_station: Counter[str] = Counter()
-        for rep in reports:
+        for rep in table_reports if w == "table" and table_reports is not None else reports:
             world = rep["settings"]["WorldSettings"]
             n_inner, dock = (world["grid_n"] - 2) ** 2, tuple(world["dock_point"])
             for run in rep["runs"]:
@@ -200,12 +203,11 @@ def main(argv: list[str] | None = None) -> int:
         reports = []
         for path in (p for folder in args.folders for p in report_files(folder)):
             reports.append(read_report(path))
-        pooled = pool(reports)
+        replays = None
         if args.replay is not None or args.envelope is not None:
             replays = [replay(r, envelope=envelope, draw=d, table=table, **changes)
                        for d in range(args.draws) for r in reports]  # fmt: skip
-            pooled["table"] = pool(replays)["table"]
-            pooled["gap_inner_pp"] = pooled["table"]["inner_pct"] - pooled["physics"]["inner_pct"]
+        pooled = pool(reports, replays)
     except InputError as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 2
