@@ -74,7 +74,8 @@ def test_the_command_writes_its_report_and_refuses_bad_settings(tmp_path, monkey
         assert rules["slide 0.5, body 15/15/15"] == rules["slide 0.5, margin 0"]
     assert (tmp_path / "block_contact.png").stat().st_size > 0
     bad_args = (["--frictions", "half"], ["--frictions", "-1"], ["--cycles", "0"],
-                ["--margins", "-2"], ["--bodies", "15/15"], ["--bodies", "15/0/12"])  # fmt: skip
+                ["--margins", "-2"], ["--bodies", "15/15"], ["--bodies", "15/0/12"],
+                ["--world", "icy"])  # fmt: skip
     for bad in bad_args:
         with pytest.raises(SystemExit) as err:
             block_contact.main([*bad, "--out", str(tmp_path)])
@@ -82,3 +83,23 @@ def test_the_command_writes_its_report_and_refuses_bad_settings(tmp_path, monkey
     err = capsys.readouterr().err
     assert "station_friction must be" in err and "--margins: station_margin must be" in err
     assert "--bodies: a body is FRONT/BACK/SIDE" in err and "--bodies: body_front, body_back" in err
+    assert "--world: " in err and "'icy'" in err
+
+
+def test_the_walk_runs_in_the_world_named(tmp_path, monkeypatch):
+    """``--world slippery`` walks the slippery robot (its model written under OUT/models):
+    the one case's physics end differs from the shipped robot's, and the report names the
+    world."""
+    pose = (458.0, 262.0, 45.0)
+    monkeypatch.setattr(block_contact, "POSE_SETS", {"tiny": ([pose], (0,))})
+    assert block_contact.main(["--frictions", "0.5", "--cycles", "2", "--world", "slippery",
+                               "--out", str(tmp_path)]) == 0  # fmt: skip
+    doc = json.loads((tmp_path / "block_contact.json").read_text())
+    assert doc["world"] == "slippery" and "physics world `slippery`" in (
+        tmp_path / "block_contact.md").read_text()
+    model = tmp_path / "models" / "slippery.xml"
+    slippery = block_contact.walk_physics([pose], [0], 2, model=model,
+                                          arena=block_contact.resolve_worlds(["slippery"])[0].arena)
+    shipped = block_contact.walk_physics([pose], [0], 2)
+    assert slippery[pose, 0][0] == pytest.approx(shipped[pose, 0][0], abs=1e-6)  # same start
+    assert slippery[pose, 0][-1] != pytest.approx(shipped[pose, 0][-1], abs=0.05)

@@ -3,13 +3,15 @@
 
     python -m servobot.robustness.block_contact [--table runs/cal/gait_table.json] \\
         [--frictions 0,0.25,0.4,0.5,0.6,0.75,1] [--cycles 3] [--margins 0,1,2,3,4,5] \\
-        [--bodies 15/15/12,18/15/12] [--out runs/block_contact]
+        [--bodies 15/15/12,18/15/12] [--world shipped] [--out runs/block_contact]
 
 From each pose of a set in front of the block, the robot walks ``--cycles`` cycles of one gait
-in the physics world ``shipped`` (whose low block stops it) and in the table world with the
-block always in the way, under each rule. A case counts when the table's block stops at
-least one of its moves (under ``cancel``); its errors are the distance between the table's
-and physics' final positions (units) and between their headings (degrees). Two pose sets:
+in a physics world of the test matrix (``--world``: ``shipped``, whose low block stops it, or
+a robot variant such as ``slippery``, with that robot's calibrated ``--table``) and in the
+table world with the block always in the way, under each rule. A case counts when the
+table's block stops at least one of its moves (under ``cancel``); its errors are the distance
+between the table's and physics' final positions (units) and between their headings
+(degrees). Two pose sets:
 ``tuning`` (on which the friction was chosen) and ``held-out`` (other poses, every gait).
 Writes ``OUT/block_contact.json``, ``.md`` and ``.png`` (mean position error against the
 friction, both sets, ``cancel`` as a line).
@@ -40,7 +42,9 @@ from evolve.geometry import wrap180
 from evolve.table import N_GAITS, PAPER_TABLE, load_table
 from evolve.world import TableWorld
 from infra.io import atomic_write, write_report
+from servo_mj.world.arena import ArenaSettings, default_robot
 from servobot.robustness.report import DPI
+from servobot.robustness.worlds import WorldError, materialise, resolve_worlds
 
 Pose = tuple[float, float, float]
 
@@ -101,13 +105,19 @@ Walks = dict[tuple[Pose, int], list[Pose]]
 """Physics' poses of each case (start pose, gait): before each cycle, then after the last."""
 
 
-def walk_physics(poses: Sequence[Pose], gaits: Sequence[int], cycles: int) -> Walks:
-    """Every case (pose × gait) walked ``cycles`` cycles in the physics world ``shipped``."""
+def walk_physics(
+    poses: Sequence[Pose], gaits: Sequence[int], cycles: int, *,
+    arena: ArenaSettings | None = None, model: Path | None = None,
+) -> Walks:  # fmt: skip
+    """Every case (pose × gait) walked ``cycles`` cycles in physics: the shipped world, or
+    ``arena`` with the robot of the MJCF file ``model`` (a matrix world's,
+    ``servobot.robustness.worlds``)."""
     from servo_mj.world.physics_world import PhysicsWorld  # physics only where it is run
 
+    robot = None if model is None else default_robot(model)
     walks: Walks = {}
     for pose, gait in itertools.product(poses, gaits):
-        phys = PhysicsWorld(*pose)
+        phys = PhysicsWorld(*pose, arena=arena, robot=robot)
         track = [phys.pose()]
         for _ in range(cycles):
             phys.step(gait)
@@ -206,10 +216,12 @@ def cycle_errors(
 def report(
     results: dict[str, list[ContactErrors]], cycles: int, *,
     title: str = "The station block's rule against physics", counted: str = "cases the block stops",
+    world: str = "shipped",
 ) -> tuple[dict, str]:  # fmt: skip
-    """(JSON document, markdown) of each pose set's per-rule summaries."""
-    doc = {"cycles": cycles, "sets": {}}
-    lines = [f"# {title} ({cycles} cycles per case)", ""]
+    """(JSON document, markdown) of each pose set's per-rule summaries, physics walked in
+    the matrix world ``world``."""
+    doc = {"cycles": cycles, "world": world, "sets": {}}
+    lines = [f"# {title} ({cycles} cycles per case, physics world `{world}`)", ""]
     for name, rows in results.items():
         n = len(rows[0].errors)
         doc["sets"][name] = {"cases": n, "rules": {r.rule: r.summary() for r in rows}}
@@ -257,8 +269,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                     "e.g. 0,1,2,3,4,5 (default: none)")  # fmt: skip
     ap.add_argument("--bodies", help="oval bodies FRONT/BACK/SIDE (units) compared cycle by "
                     "cycle, e.g. 15/15/12,18/15/12 (default: none)")  # fmt: skip
+    ap.add_argument("--world", default="shipped", help="the physics world walked: a test "
+                    "matrix world (shipped, slippery, heavy, ...; `servobot robustness`) or a "
+                    "`servobot variant` file (default shipped)")  # fmt: skip
     ap.add_argument("--out", type=Path, default=Path("runs/block_contact"))
     args = ap.parse_args(argv)
+    try:
+        (world,) = resolve_worlds([args.world])
+    except WorldError as exc:
+        ap.error(f"--world: {exc}")
     try:
         frictions = [float(f) for f in args.frictions.split(",")]
         envelopes = rules(frictions)
@@ -279,16 +298,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error(f"--cycles must be ≥ 1, got {args.cycles}")
     table = PAPER_TABLE if args.table is None else load_table(args.table).values
     sets = {**POSE_SETS, "corners": CORNERS} if by_cycle_rules else POSE_SETS
-    walks = {name: walk_physics(poses, gaits, args.cycles)
+    model = materialise(world, args.out / "models")
+    walks = {name: walk_physics(poses, gaits, args.cycles, arena=world.arena, model=model)
              for name, (poses, gaits) in sets.items()}  # fmt: skip
     results = {name: contact_errors(table, poses, gaits, envelopes, args.cycles, walks[name])
                for name, (poses, gaits) in POSE_SETS.items()}  # fmt: skip
-    doc, md = report(results, args.cycles)
+    doc, md = report(results, args.cycles, world=world.name)
     if by_cycle_rules:
         by_cycle = {name: cycle_errors(table, poses, gaits, by_cycle_rules, args.cycles,
                                        walks[name])
                     for name, (poses, gaits) in sets.items()}  # fmt: skip
-        doc_c, md_c = report(by_cycle, args.cycles, counted="cycles",
+        doc_c, md_c = report(by_cycle, args.cycles, counted="cycles", world=world.name,
                              title="Cycle by cycle, every cycle: the block's reach")  # fmt: skip
         doc["cycle_by_cycle"] = doc_c["sets"]
         md += "\n" + md_c
