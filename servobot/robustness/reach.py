@@ -43,12 +43,18 @@ TABLE = "table"
 """The table world's column (its runs are the same in every physics world)."""
 
 
+def dock_distances(track: np.ndarray, dock_point: tuple[float, float]) -> np.ndarray:
+    """Distance (units) of each pose of ``track`` (N, 3: x, y, heading) from ``dock_point``."""
+    xy = np.asarray(track, dtype=float)[:, :2]
+    return np.hypot(xy[:, 0] - dock_point[0], xy[:, 1] - dock_point[1])
+
+
 def track_reach(track: np.ndarray, dock_point: tuple[float, float]) -> tuple[float, float, float]:
     """(mean distance, ``QUANTILE``-th percentile distance from ``dock_point``, least x) of a
     run's poses ``track`` (N, 3: x, y, heading; units, degrees), every pose counted once."""
-    xy = np.asarray(track, dtype=float)[:, :2]
-    d = np.hypot(xy[:, 0] - dock_point[0], xy[:, 1] - dock_point[1])
-    return float(d.mean()), float(np.percentile(d, QUANTILE)), float(xy[:, 0].min())
+    track = np.asarray(track, dtype=float)
+    d = dock_distances(track, dock_point)
+    return float(d.mean()), float(np.percentile(d, QUANTILE)), float(track[:, 0].min())
 
 
 def cell_tracks(folder: Path, side: str) -> list[np.ndarray]:
@@ -86,7 +92,7 @@ def matrix_reach(matrix: Path, world: WorldSettings | None = None) -> dict[str, 
         for name in names:
             tracks = cell_tracks(matrix / RUNS_DIR / world_name / name, side)
             rows.append({"name": name, **_summary(tracks, dock)})
-            pooled += [np.hypot(t[:, 0] - dock[0], t[:, 1] - dock[1]) for t in tracks]
+            pooled += [dock_distances(t, dock) for t in tracks]
         flat = np.concatenate(pooled) if pooled else np.zeros(0)
         out.append({"world": label, "per_chromosome": rows,
                     **{k: float(np.mean([r[k] for r in rows]))
