@@ -38,6 +38,7 @@ from evolve.stages import (
     StageOptions,
     StageRun,
     _check_navigation,
+    _gene_text,
     _kernel_threads,
     _provenance,
     _run_populations,
@@ -96,13 +97,16 @@ def colony_stage_fitness(
 
 def colony_stage(
     world: WorldSettings, colony: ColonySettings, navigation: np.ndarray, envelope: Envelope = NONE,
-    coverage: np.ndarray | None = None,
+    coverage: np.ndarray | None = None, partners: np.ndarray | None = None,
+    first: np.ndarray | None = None,
 ) -> Stage:  # fmt: skip
     """The colony's ``Stage``: coverage mode, colony starts, ``colony.fitness`` as run fitness
     (default the colony squares), in ``envelope``. It evolves coverage sections under the
     fixed ``navigation`` section, or (``colony.sections = "navigation"``) navigation sections
     starting as ``navigation``, population k's under the fixed coverage section
-    ``coverage[k]`` ((K, 8, 30) bits)."""
+    ``coverage[k]`` ((K, 8, 30) bits), or (``"beside"``) the coverage section of robot R − 1
+    of a colony whose robots 0 … R − 2 carry the fixed coverage section ``partners`` ((8, 30)
+    bits), every individual of generation 0 carrying ``first`` ((8, 30) bits; None: random)."""
     nav = _check_navigation(navigation)
     check_capacity(world, colony)
     learn_navigation = colony.sections == "navigation"
@@ -110,6 +114,11 @@ def colony_stage(
         raise StageError(
             "coverage sections are given exactly when the colony stage learns navigation "
             "(ColonySettings.sections 'navigation', --coverage-from)"
+        )
+    if (colony.sections == "beside") != (partners is not None):
+        raise StageError(
+            "a partner's coverage section is given exactly when the colony stage learns the last "
+            "robot's section beside it (ColonySettings.sections 'beside', --partners)"
         )
     if coverage is not None:
         coverage = np.asarray(coverage)
@@ -119,7 +128,7 @@ def colony_stage(
                 f"coverage sections must be (populations, 8, 30) bits, got {coverage.shape}"
             )
         coverage = np.ascontiguousarray(coverage, dtype=np.uint8)
-    return Stage(
+    stage = Stage(
         "colony",
         "coverage",
         world.coverage_steps,
@@ -132,6 +141,43 @@ def colony_stage(
         coverage=coverage,
         initial=nav if learn_navigation else None,
     )
+    if first is not None and partners is None:
+        raise StageError(
+            "a first section is given only to the colony stage that learns "
+            "the last robot's (ColonySettings.sections 'beside', --first)"
+        )
+    if partners is None:
+        return stage
+    from evolve.coevolution import role_stage
+
+    def bits(section: np.ndarray, name: str) -> np.ndarray:
+        section = np.asarray(section)
+        if section.shape != nav.shape or not np.isin(section, (0, 1)).all():
+            raise StageError(f"the {name} section must be (8, 30) bits, got {section.shape}")
+        return section.astype(np.uint8)
+
+    team = np.broadcast_to(bits(partners, "partners'"), (colony.robots, *nav.shape))
+    if first is not None:
+        stage = dataclasses.replace(stage, initial=bits(first, "first"))
+    return role_stage(stage, team, colony.robots - 1)
+
+
+def coverage_section(
+    path: Path, navigation: np.ndarray | None = None, option: str = "--partners"
+) -> np.ndarray:
+    """(8, 30): the coverage section (genes 0–7) of the 16-gene chromosome at ``path``: the
+    partners' of a ``"beside"`` colony stage, or (``option`` ``--first``) its first
+    generation's. ``StageError`` naming the file when it is not a whole chromosome or, with
+    ``navigation`` (the partners': every robot runs the stage's), carries another."""
+    bits = read_chromosome(path)
+    if bits.shape[0] != 2 * SECTION_GENES:
+        raise StageError(f"{path}: {bits.shape[0]} genes, but {option} takes the coverage "
+                         "section of a 16-gene chromosome")  # fmt: skip
+    if navigation is not None and not np.array_equal(bits[SECTION_GENES:], navigation):
+        raise StageError(f"{path}: its navigation section (genes 8–15) differs from the "
+                         "stage's --navigation; every robot carries the stage's, so give "
+                         "that one")  # fmt: skip
+    return bits[:SECTION_GENES].astype(np.uint8)
 
 
 def finalists_coverage(run: Path, populations: int) -> np.ndarray:
@@ -170,6 +216,8 @@ def run_colony_stage(
     colony: ColonySettings = DEFAULT_COLONY,
     team_from: np.ndarray | None = None,
     coverage: np.ndarray | None = None,
+    partners: np.ndarray | None = None,
+    first: np.ndarray | None = None,
     **options: Unpack[StageOptions],
 ) -> dict[str, Any]:
     """Colony stage (SPEC §7) into ``out/colony``; returns the summary (also
@@ -199,13 +247,23 @@ def run_colony_stage(
     and the stage evolves it in the colony. Its saved bests and finalists are navigation
     sections behind those coverage sections; Figure 9's generation 0 is the colony the
     coverage sections came from (the same colony test starts at the same seed).
+
+    ``partners`` (``colony.sections = "beside"`` only): the (8, 30) coverage section robots
+    0 … R − 2 carry (e.g. ``coverage_section`` of a colony finalist), recorded in
+    ``settings.json``; the stage evolves robot R − 1's. Figure 9, the final test and Figure 10
+    run the whole colony; ``best_pop{k}.txt`` is robot R − 1's chromosome, and the final
+    test's lone robot is it. ``first``: the (8, 30) section every individual of generation 0
+    carries (e.g. the team's current last robot's; recorded as ``initial_section``); None:
+    random.
     """
     folder = Path(out) / "colony"
     run = StageRun(**options)
     if coverage is not None and len(coverage) != ga.populations:
         raise StageError(f"{len(coverage)} coverage sections for {ga.populations} populations")
-    stage = colony_stage(world, colony, navigation, run.envelope, coverage)
+    stage = colony_stage(world, colony, navigation, run.envelope, coverage, partners, first)
     extra = None
+    if partners is not None:
+        extra = {"partner_section": _gene_text(partners)}
     if team_from is not None:
         from evolve.coevolution import check_team_from
 
@@ -234,6 +292,8 @@ def _colony(
                             ga.seed)  # fmt: skip
         finals = np.stack([stage.for_population(k).genomes(res.best[None])[0]
                            for k, res in enumerate(results)])  # fmt: skip
+        if colony.sections == "beside":
+            finals = _beside_teams(stage, finals, colony.robots)
     inner = fig9[""][0]
     _write_figure9(folder, gens, fig9, stage.envelope)
     r = colony.robots
@@ -241,11 +301,13 @@ def _colony(
         folder / "figure9.png", gens, inner,
         title=f"Figure 9, a colony of {r}: colony inner squares of each population's best",
     )  # fmt: skip
-    final = final_test(finals, test_starts, table, world, colony)
+    lone = colony.robots - 1 if colony.sections == "beside" else 0
+    final = final_test(finals, test_starts, table, world, colony, lone_robot=lone)
     fig10 = []
     start = figure10_starts(world, colony)
     for k, full in enumerate(finals):
-        _write_finalist(folder, k, full, ga, table, world, inner[k, -1], colony.sections)
+        mine = full[-1] if colony.sections == "beside" else full
+        _write_finalist(folder, k, mine, ga, table, world, inner[k, -1], colony.sections)
         fig = figures.colony_figure10(
             folder / f"figure10_pop{k}.png", full, table=table, world=world, colony=colony,
             starts=start, title=f"population {k}",
@@ -294,6 +356,15 @@ def _evolve_teams(
     return np.stack([stage.genomes(res.team) for res in results]), fig9, test_starts
 
 
+def _beside_teams(stage: Stage, finals: np.ndarray, robots: int) -> np.ndarray:
+    """(K, R, 16, 30): each finalist (K, 16, 30) as robot R − 1 of the ``"beside"`` stage's
+    colony, robots 0 … R − 2 carrying the partners' chromosome."""
+    team = stage.evaluate.keywords["partners"]  # (R, 16, 30), set by role_stage
+    out = np.repeat(team[None], len(finals), axis=0)
+    out[:, robots - 1] = finals
+    return out
+
+
 def _write_finalist(
     folder: Path, k: int, full: np.ndarray, ga: GASettings, table: GaitTable,
     world: WorldSettings, inner: float, colony_sections: str,
@@ -302,9 +373,11 @@ def _write_finalist(
     (R, 16, 30)); ``colony_sections``: what the stage learned (``ColonySettings.sections``)."""
     test = f"Figure 9 test {inner:.1f}% of the {world.inner_square_count} inner squares"
     if full.ndim == 2:
-        learned = ("coverage section (fixed) + navigation (learned as a colony)"
-                   if colony_sections == "navigation"
-                   else "coverage section (learned as a colony) + navigation (fixed)")  # fmt: skip
+        learned = {
+            "navigation": "coverage section (fixed) + navigation (learned as a colony)",
+            "beside": "the last robot's coverage section (learned beside the partners of "
+            "settings.json) + navigation (fixed)",
+        }.get(colony_sections, "coverage section (learned as a colony) + navigation (fixed)")
         extra = f"16 genes: {learned}; {test}"
         write_chromosome(
             folder / f"best_pop{k}.txt", full, _provenance("colony", k, ga, table, extra)
@@ -325,10 +398,11 @@ def final_test(
     table: GaitTable,
     world: WorldSettings,
     colony: ColonySettings,
+    lone_robot: int = 0,
 ) -> list[dict[str, Any]]:
     """Each population's final best (rows of ``genomes``, 16 genes; or teams (K, R, 16, 30),
     robot r carrying row r) as a colony from the colony ``test_starts`` (T, R, 3), and alone
-    (a team's robot 0) from each start's robot-0 pose (T, 3).
+    (a team's robot ``lone_robot``) from each start's robot-0 pose (T, 3).
 
     Per population: colony and per-robot inner coverage (% of the inner squares), squares,
     docks per robot, station waits and blocked moves per run, colony steps, how the robots
@@ -344,7 +418,7 @@ def final_test(
                for team in genomes]  # fmt: skip
         ev = type(evs[0])(**{f.name: np.concatenate([getattr(e, f.name) for e in evs])
                              for f in dataclasses.fields(evs[0])})  # fmt: skip
-        genomes = genomes[:, 0]
+        genomes = genomes[:, lone_robot]
     else:
         ev = evaluate_colony(genomes, test_starts, colony=colony, **kw)
     lone = evaluate(genomes, np.ascontiguousarray(test_starts[:, 0]), **kw)
@@ -384,5 +458,6 @@ __all__ = [
     "figure10_starts",
     "final_test",
     "finalists_coverage",
+    "coverage_section",
     "run_colony_stage",
 ]

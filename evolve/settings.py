@@ -31,9 +31,10 @@ BLOCKING_RULES = ("cancel", "slide")
 COLONY_FITNESSES = ("squares", "alive", "per_step", "docks")
 """``ColonySettings.fitness`` values: what one colony run scores in the colony stage."""
 
-COLONY_SECTIONS = ("shared", "team", "navigation")
+COLONY_SECTIONS = ("shared", "team", "navigation", "beside")
 """``ColonySettings.sections`` values: one coverage section for every robot, one per robot
-evolved by cooperative coevolution, or the navigation section under fixed coverage sections."""
+evolved by cooperative coevolution, the navigation section under fixed coverage sections, or
+the last robot's coverage section beside fixed partners."""
 
 
 @dataclass(frozen=True)
@@ -280,7 +281,11 @@ class ColonySettings:
     carrying the fixed coverage section of a finished shared run's finalist k and its
     individuals starting as the navigation section that run carried
     (``evolve.colony_stage.run_colony_stage(coverage=...)``; docs/colony.md "Navigation learned
-    in the colony")."""
+    in the colony"). ``"beside"``: the last robot's coverage section, learned beside fixed
+    partners: robots 0 … R−2 carry a given coverage section (``--partners FILE``), every robot
+    the stage's navigation section, and each individual is scored as robot R−1 of that colony
+    (``evolve.colony_stage.run_colony_stage(partners=...)``; docs/colony.md "A coverer
+    learned for its team")."""
 
     def __post_init__(self) -> None:
         if self.fitness not in COLONY_FITNESSES:

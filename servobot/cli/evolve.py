@@ -14,8 +14,8 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --colony-fitness squares|alive|per_step|docks
                                 --alive-weight 8 --dock-weight 4 --dock-cap 2
                                 --start-power-spread 0 --robots-unseen --contact-yaw 0
-                                --sections shared|team|navigation --team-from DIR
-                                --coverage-from DIR]
+                                --sections shared|team|navigation|beside --team-from DIR
+                                --coverage-from DIR --partners FILE --first FILE]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
@@ -25,7 +25,8 @@ scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`
 ``--robots-unseen`` object sensors blind to the other robots, ``--contact-yaw`` the table
 world's turn away from a robot that blocks a move, ``--sections`` one section
 for every robot, a coevolved team of them, or the navigation section learned in the colony
-under the coverage sections of ``--coverage-from``'s finalists;
+under the coverage sections of ``--coverage-from``'s finalists, or the last robot's
+section beside robots carrying ``--partners``' (a coverer learned for its team);
 ``--nav-start-power``, ``--nav-dock-tol``: ``NavigationSettings.start_power_v``,
 ``dock_heading_tol_deg``).
 ``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
@@ -158,7 +159,26 @@ def build_parser() -> argparse.ArgumentParser:
         "SPEC §7) or each its own, evolved by cooperative coevolution: a team of R "
         "populations per population, R × the runs (team); or the colony learns the "
         "navigation section, from --navigation, under --coverage-from's coverage sections "
-        "(navigation); ColonySettings.sections, docs/colony.md",
+        "(navigation); or the last robot's coverage section beside robots carrying --partners' "
+        "(beside); ColonySettings.sections, docs/colony.md",
+    )
+    p.add_argument(
+        "--partners",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="colony, --sections beside: robots 0 … R−2 carry the coverage section of this "
+        "16-gene chromosome (its navigation section must be --navigation's); the stage learns "
+        "robot R−1's; docs/colony.md",
+    )
+    p.add_argument(
+        "--first",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="colony, --sections beside: every individual of generation 0 carries this 16-gene "
+        "chromosome's coverage section (genes 0–7, e.g. the team's current last robot's) "
+        "instead of a random one",
     )
     p.add_argument(
         "--coverage-from",
@@ -430,6 +450,11 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     if (args.coverage_from is not None) != (args.sections == "navigation"):
         raise CliError("--sections navigation needs --coverage-from DIR, and --coverage-from "
                        "is an option of the colony stage with --sections navigation")  # fmt: skip
+    if (args.partners is not None) != (args.sections == "beside"):
+        raise CliError("--sections beside needs --partners FILE, and --partners is an option of "
+                       "the colony stage with --sections beside")  # fmt: skip
+    if args.first is not None and args.sections != "beside":
+        raise CliError("--first is an option of the colony stage with --sections beside")
     colony = _colony(args)
     ga = ga_settings(args)
     table = load_table(args.table)
@@ -461,8 +486,16 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
             from evolve.colony_stage import finalists_coverage
 
             coverage = finalists_coverage(args.coverage_from, ga.populations)
+        partners = first = None
+        if args.partners is not None:
+            from evolve.colony_stage import coverage_section
+
+            partners = coverage_section(args.partners, navigation)
+            if args.first is not None:
+                first = coverage_section(args.first, option="--first")
         summary = run_colony_stage(args.out, navigation=navigation, colony=colony,
-                                   team_from=team_from, coverage=coverage, **kw)  # fmt: skip
+                                   team_from=team_from, coverage=coverage, partners=partners,
+                                   first=first, **kw)  # fmt: skip
         _print_colony(summary, args.out)
     return 0
 
