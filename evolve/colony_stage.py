@@ -281,6 +281,7 @@ def _colony(
 
     t0 = time.perf_counter()
     gens = save_generations(ga)
+    beside = colony.sections == "beside"  # finals are teams; the last robot's is the finalist
     if colony.sections == "team":
         finals, fig9, test_starts = _evolve_teams(stage, folder, doc, table, ga, world, colony,
                                                   run, team_from)  # fmt: skip
@@ -292,7 +293,7 @@ def _colony(
                             ga.seed)  # fmt: skip
         finals = np.stack([stage.for_population(k).genomes(res.best[None])[0]
                            for k, res in enumerate(results)])  # fmt: skip
-        if colony.sections == "beside":
+        if beside:
             finals = _beside_teams(stage, finals, colony.robots)
     inner = fig9[""][0]
     _write_figure9(folder, gens, fig9, stage.envelope)
@@ -301,13 +302,12 @@ def _colony(
         folder / "figure9.png", gens, inner,
         title=f"Figure 9, a colony of {r}: colony inner squares of each population's best",
     )  # fmt: skip
-    lone = colony.robots - 1 if colony.sections == "beside" else 0
-    final = final_test(finals, test_starts, table, world, colony, lone_robot=lone)
+    final = final_test(finals, test_starts, table, world, colony, lone_robot=r - 1 if beside else 0)
     fig10 = []
     start = figure10_starts(world, colony)
     for k, full in enumerate(finals):
-        mine = full[-1] if colony.sections == "beside" else full
-        _write_finalist(folder, k, mine, ga, table, world, inner[k, -1], colony.sections)
+        _write_finalist(folder, k, full[-1] if beside else full, ga, table, world, inner[k, -1],
+                        colony.sections)  # fmt: skip
         fig = figures.colony_figure10(
             folder / f"figure10_pop{k}.png", full, table=table, world=world, colony=colony,
             starts=start, title=f"population {k}",
