@@ -369,6 +369,7 @@ def run_navigation(
     ga: GASettings | None = None,
     world: WorldSettings = DEFAULT_WORLD,
     navigation: NavigationSettings = DEFAULT_NAVIGATION,
+    first: np.ndarray | None = None,
     **options: Unpack[StageOptions],
 ) -> dict[str, Any]:
     """Navigation stage (SPEC §6) into ``out/navigation``; returns the summary dict.
@@ -400,11 +401,17 @@ def run_navigation(
     and ``envelope_dock_success``, ``envelope_mean_steps_to_dock``, ``envelope_test_fitness``
     (and ``envelope_dock_rate``, ``envelope_test_fitness`` per population) give the same
     test starts in the envelope (key ``key_of_test(seed, "docking")``).
+
+    ``first``: an (8, 30) section every individual of generation 0 carries (recorded as
+    ``initial_section``; a resume with another is refused), e.g. a lineage found in another
+    world carried into an envelope; None: a random generation 0.
     """
     run = StageRun(**options)
     ga = navigation_ga_settings() if ga is None else ga
     given, world = world, navigation.world(world)
     stage = navigation_stage(world, navigation, ga.generations, run.envelope)
+    if first is not None:
+        stage = dataclasses.replace(stage, initial=_check_navigation(first))
     folder = Path(out) / "navigation"
     with _stage_folder(stage, folder, table, ga, world, run.resume, run.force) as doc:
         t0 = time.perf_counter()

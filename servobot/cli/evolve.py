@@ -6,7 +6,7 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --starts-per-generation 40 --seed 0
                                 --table paper|PATH --power paper|table
                                 --envelope none|default|FILE.json --nav-start-power V
-                                --nav-dock-tol DEG
+                                --nav-dock-tol DEG --first FILE
                                 --out runs/evolve --resume
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
@@ -176,9 +176,10 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         default=None,
         metavar="FILE",
-        help="colony, --sections beside: every individual of generation 0 carries this 16-gene "
-        "chromosome's coverage section (genes 0–7, e.g. the team's current last robot's) "
-        "instead of a random one",
+        help="navigation: every individual of generation 0 carries this file's navigation "
+        "section (8 genes, or genes 8–15 of 16) instead of a random one; colony, --sections "
+        "beside: this 16-gene chromosome's coverage section (genes 0–7, e.g. the team's "
+        "current last robot's)",
     )
     p.add_argument(
         "--coverage-from",
@@ -453,8 +454,9 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     if (args.partners is not None) != (args.sections == "beside"):
         raise CliError("--sections beside needs --partners FILE, and --partners is an option of "
                        "the colony stage with --sections beside")  # fmt: skip
-    if args.first is not None and args.sections != "beside":
-        raise CliError("--first is an option of the colony stage with --sections beside")
+    if args.first is not None and args.stage != "navigation" and args.sections != "beside":
+        raise CliError("--first is an option of the navigation stage and of the colony stage "
+                       "with --sections beside")  # fmt: skip
     colony = _colony(args)
     ga = ga_settings(args)
     table = load_table(args.table)
@@ -468,7 +470,13 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
             raise CliError("--navigation is an option of the coverage and colony stages")
         nav = stages.NavigationSettings(start_power_v=args.nav_start_power,
                                         dock_heading_tol_deg=args.nav_dock_tol)  # fmt: skip
-        _print_navigation(stages.run_navigation(args.out, navigation=nav, **kw), args.out)
+        first = None
+        if args.first is not None:
+            if not args.first.exists():
+                raise CliError(f"--first {args.first}: no such file")
+            first = load_navigation(args.first)
+        summary = stages.run_navigation(args.out, navigation=nav, first=first, **kw)
+        _print_navigation(summary, args.out)
         return 0
     navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt",
                                  given=args.navigation is not None)  # fmt: skip
