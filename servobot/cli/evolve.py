@@ -303,15 +303,15 @@ def ga_settings(args: argparse.Namespace) -> GASettings:
     return ga
 
 
-def load_navigation(path: Path, *, given: bool = True) -> np.ndarray:
+def load_navigation(path: Path, *, given: bool = True, option: str = "--navigation") -> np.ndarray:
     """The navigation section of ``path`` (``evolve.stages.navigation_section``): the file
-    ``--navigation`` names (``given``) or the default ``DIR/navigation/best.txt``."""
+    ``option`` names (``given``) or the default ``DIR/navigation/best.txt``."""
     from evolve.codec import read_chromosome
     from evolve.stages import navigation_section
 
     if not path.exists() and not path.is_symlink():
         if given:
-            raise CliError(f"--navigation {path}: no such file")
+            raise CliError(f"{option} {path}: no such file")
         raise CliError(
             f"{path}: no navigation section file; run 'servobot evolve navigation' with the "
             "same --out first, or give --navigation FILE"
@@ -470,11 +470,7 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
             raise CliError("--navigation is an option of the coverage and colony stages")
         nav = stages.NavigationSettings(start_power_v=args.nav_start_power,
                                         dock_heading_tol_deg=args.nav_dock_tol)  # fmt: skip
-        first = None
-        if args.first is not None:
-            if not args.first.exists():
-                raise CliError(f"--first {args.first}: no such file")
-            first = load_navigation(args.first)
+        first = None if args.first is None else load_navigation(args.first, option="--first")
         summary = stages.run_navigation(args.out, navigation=nav, first=first, **kw)
         _print_navigation(summary, args.out)
         return 0
