@@ -37,7 +37,7 @@ from evolve.settings import ColonySettings, GASettings, WorldSettings
 from evolve.stages import (
     StageOptions,
     StageRun,
-    _check_navigation,
+    _check_section,
     _gene_text,
     _kernel_threads,
     _provenance,
@@ -107,7 +107,7 @@ def colony_stage(
     ``coverage[k]`` ((K, 8, 30) bits), or (``"beside"``) the coverage section of robot R − 1
     of a colony whose robots 0 … R − 2 carry the fixed coverage section ``partners`` ((8, 30)
     bits), every individual of generation 0 carrying ``first`` ((8, 30) bits; None: random)."""
-    nav = _check_navigation(navigation)
+    nav = _check_section(navigation)
     check_capacity(world, colony)
     learn_navigation = colony.sections == "navigation"
     if learn_navigation != (coverage is not None):
@@ -150,15 +150,9 @@ def colony_stage(
         return stage
     from evolve.coevolution import role_stage
 
-    def bits(section: np.ndarray, name: str) -> np.ndarray:
-        section = np.asarray(section)
-        if section.shape != nav.shape or not np.isin(section, (0, 1)).all():
-            raise StageError(f"the {name} section must be (8, 30) bits, got {section.shape}")
-        return section.astype(np.uint8)
-
-    team = np.broadcast_to(bits(partners, "partners'"), (colony.robots, *nav.shape))
+    team = np.broadcast_to(_check_section(partners, "partners'"), (colony.robots, *nav.shape))
     if first is not None:
-        stage = dataclasses.replace(stage, initial=bits(first, "first"))
+        stage = dataclasses.replace(stage, initial=_check_section(first, "first"))
     return role_stage(stage, team, colony.robots - 1)
 
 

@@ -187,7 +187,7 @@ def coverage_stage(
     world: WorldSettings, navigation: np.ndarray, envelope: Envelope = NONE
 ) -> Stage:
     """The coverage stage (SPEC §5) with the fixed ``navigation`` section, in ``envelope``."""
-    nav = _check_navigation(navigation)
+    nav = _check_section(navigation)
     return Stage(
         "coverage", "coverage", world.coverage_steps, coverage_starts, coverage_run_fitness, nav,
         envelope=envelope,
@@ -200,11 +200,12 @@ def navigation_section(bits: np.ndarray) -> np.ndarray:
     return bits if bits.shape[0] == SECTION_GENES else bits[SECTION_GENES:]
 
 
-def _check_navigation(navigation: np.ndarray) -> np.ndarray:
-    nav = np.asarray(navigation)
-    if nav.shape != (SECTION_GENES, GENE_BITS) or not np.isin(nav, (0, 1)).all():
-        raise StageError(f"navigation section must be an (8, 30) array of bits, got {nav.shape}")
-    return nav.astype(np.uint8)
+def _check_section(section: np.ndarray, name: str = "navigation") -> np.ndarray:
+    """``section`` as (8, 30) uint8 bits; ``StageError`` naming it (``the {name} section``)."""
+    bits = np.asarray(section)
+    if bits.shape != (SECTION_GENES, GENE_BITS) or not np.isin(bits, (0, 1)).all():
+        raise StageError(f"the {name} section must be an (8, 30) array of bits, got {bits.shape}")
+    return bits.astype(np.uint8)
 
 
 def _gene_text(section: np.ndarray) -> list[str]:
@@ -411,7 +412,7 @@ def run_navigation(
     given, world = world, navigation.world(world)
     stage = navigation_stage(world, navigation, ga.generations, run.envelope)
     if first is not None:
-        stage = dataclasses.replace(stage, initial=_check_navigation(first))
+        stage = dataclasses.replace(stage, initial=_check_section(first, "first"))
     folder = Path(out) / "navigation"
     with _stage_folder(stage, folder, table, ga, world, run.resume, run.force) as doc:
         t0 = time.perf_counter()

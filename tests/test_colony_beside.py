@@ -141,7 +141,7 @@ def test_bad_partners_are_named(runs, tmp_path):
         run_colony_stage(tmp_path / "a", navigation=NAV, table=TABLE, ga=TINY, partners=partner)
     with pytest.raises(StageError, match="given exactly when the colony stage learns the last"):
         run_colony_stage(tmp_path / "b", navigation=NAV, table=TABLE, ga=TINY, colony=BESIDE)
-    with pytest.raises(StageError, match=r"must be \(8, 30\) bits, got \(7, 30\)"):
+    with pytest.raises(StageError, match=r"the partners. section must be an \(8, 30\) array"):
         colony_stage(WORLD, BESIDE, NAV, partners=partner[:7])
     write_chromosome(tmp_path / "eight.txt", NAV)
     with pytest.raises(StageError, match="eight.txt: 8 genes, but --partners takes"):
@@ -157,7 +157,7 @@ def test_bad_partners_are_named(runs, tmp_path):
     )  # any navigation: only genes 0–7 are taken
     with pytest.raises(StageError, match="a first section is given only to the colony stage"):
         colony_stage(WORLD, ColonySettings(), NAV, first=partner)
-    with pytest.raises(StageError, match=r"the first section must be \(8, 30\) bits"):
+    with pytest.raises(StageError, match=r"the first section must be an \(8, 30\) array of bits"):
         colony_stage(WORLD, BESIDE, NAV, partners=partner, first=partner[:, :29])
 
 

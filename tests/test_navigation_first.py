@@ -48,7 +48,7 @@ def test_generation_0_is_the_given_section_and_it_is_recorded(tmp_path):
     other[0, 0] ^= 1
     with pytest.raises(RunDirError, match="initial_section"):
         stages.run_navigation(tmp_path / "run", table=TABLE, ga=ga, first=other, resume=True)
-    with pytest.raises(stages.StageError, match=r"\(8, 30\) array of bits"):
+    with pytest.raises(stages.StageError, match=r"the first section must be an \(8, 30\)"):
         stages.run_navigation(tmp_path / "bad", table=TABLE, ga=ga, first=first[:7])
 
 
