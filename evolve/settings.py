@@ -461,6 +461,17 @@ class NavigationSettings:
     end their approach squarer to the station; the section then runs in the world of SPEC §3,
     where the summary reports it too (``spec_dock_success``; docs/envelope.md)."""
 
+    start_poses: tuple[tuple[float, float, float], ...] | None = None
+    """Start poses (x, y arena units, heading degrees) every run of the stage starts from
+    (training, selection, test), drawn with replacement; None: SPEC §6's region, the training
+    runs in the growing region above [chosen]. A coverage run's hand-offs (``handoffs.csv``,
+    ``servobot evolve navigation --nav-starts``) train and choose the section where the
+    coverage section will hand it control: a SPEC §6 start is a uniform pose at full store,
+    while hand-offs gather where coverage excursions turn home, and what decides a coverage
+    run is the rate over them (seed 1's p13g0896 docks 97.8 % of one coverage section's
+    hand-offs on the shipped robot's table, 93.2 % on the heavy robot's; docs/robustness.md).
+    The test starts come from the same poses, so the stage's docking rate is a rate over them."""
+
     def __post_init__(self) -> None:
         if self.candidates not in ("saved", "final"):
             raise SettingsError(f"candidates must be 'saved' or 'final', got {self.candidates!r}")
@@ -485,16 +496,24 @@ class NavigationSettings:
             raise SettingsError(f"dock_heading_tol_deg must be an angle in (0, 180] degrees or "
                                 f"None, got {tol!r}")  # fmt: skip
 
+        poses = self.start_poses
+        if poses is not None and not (
+            len(poses) > 0
+            and all(len(p) == 3 and all(is_finite_number(v) for v in p) for p in poses)
+        ):
+            raise SettingsError("start_poses must be one or more (x, y, h) poses of finite "
+                                "numbers, or None")  # fmt: skip
+
     def ramp_generations(self, generations: int) -> int:
         """Generations over which the training start region grows in a stage of
         ``generations`` (0: no growth, the whole region throughout)."""
         return round(self.start_ramp_fraction * generations)
 
     def to_dict(self) -> dict[str, Any]:
-        """The fields; ``start_power_v`` and ``dock_heading_tol_deg`` only when set (folders
-        made before them resume)."""
+        """The fields; ``start_power_v``, ``dock_heading_tol_deg`` and ``start_poses`` only when
+        set (folders made before them resume)."""
         doc = dataclasses.asdict(self)
-        for name in NAVIGATION_WORLD_FIELDS:
+        for name in (*NAVIGATION_WORLD_FIELDS, "start_poses"):
             if doc[name] is None:
                 del doc[name]
         return doc

@@ -73,7 +73,12 @@ from evolve.settings import (
     navigation_ga_settings,
     settings_json,
 )
-from evolve.starts import coverage_starts, navigation_starts, navigation_training_starts
+from evolve.starts import (
+    coverage_starts,
+    navigation_starts,
+    navigation_training_starts,
+    pose_starts,
+)
 from evolve.table import GaitTable
 from evolve.variation import Variation
 from infra.bounds import LIMITS, Limits, Need, check_int, check_need
@@ -162,24 +167,27 @@ def navigation_stage(
     envelope: Envelope = NONE,
 ) -> Stage:
     """The navigation stage (SPEC §6) of ``generations`` generations in ``envelope``;
-    ``navigation`` (the growing training start region, how the final section is chosen) is
-    saved with its settings."""
+    ``navigation`` (the growing training start region, or the start poses of every run; how
+    the final section is chosen) is saved with its settings."""
     ramp = navigation.ramp_generations(generations)
+    starts, training = navigation_starts, None
+    if navigation.start_poses is not None:
+        starts = functools.partial(pose_starts, poses=np.asarray(navigation.start_poses))
+    elif ramp > 0:
+        training = functools.partial(
+            navigation_training_starts,
+            first_radius=navigation.first_start_radius,
+            ramp_generations=ramp,
+        )
     return Stage(
         "navigation",
         "navigation",
         world.navigation_steps,
-        navigation_starts,
+        starts,
         navigation_run_fitness,
         extra_settings=(navigation,),
         envelope=envelope,
-        training_starts=None
-        if ramp == 0
-        else functools.partial(
-            navigation_training_starts,
-            first_radius=navigation.first_start_radius,
-            ramp_generations=ramp,
-        ),
+        training_starts=training,
     )
 
 

@@ -36,6 +36,15 @@ def navigation_starts(rng: np.random.Generator, n: int, world: WorldSettings) ->
     return _uniform_poses(rng, n, world.navigation_start_xy, world.navigation_start_xy)
 
 
+def pose_starts(
+    rng: np.random.Generator, n: int, world: WorldSettings, *, poses: np.ndarray
+) -> np.ndarray:
+    """(n, 3) start poses drawn with replacement from ``poses`` (P, 3), e.g. a coverage run's
+    hand-offs (``NavigationSettings.start_poses``); ``world`` is unused, as in every start
+    function's signature."""
+    return np.array(poses, dtype=np.float64)[rng.integers(0, len(poses), n)]
+
+
 def navigation_training_starts(
     rng: np.random.Generator,
     n: int,
@@ -180,4 +189,5 @@ __all__ = [
     "navigation_starts",
     "navigation_starts_where",
     "navigation_training_starts",
+    "pose_starts",
 ]

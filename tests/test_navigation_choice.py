@@ -30,7 +30,12 @@ from evolve.settings import (
     WorldSettings,
     navigation_ga_settings,
 )
-from evolve.starts import growing_radius, navigation_starts, navigation_training_starts
+from evolve.starts import (
+    growing_radius,
+    navigation_starts,
+    navigation_training_starts,
+    pose_starts,
+)
 from evolve.table import load_table
 
 WORLD = WorldSettings()
@@ -69,6 +74,9 @@ def test_navigation_settings_refuse_what_cannot_run():
         {"dock_heading_tol_deg": 0.0},
         {"dock_heading_tol_deg": 181.0},
         {"dock_heading_tol_deg": float("inf")},
+        {"start_poses": ()},
+        {"start_poses": ((1.0, 2.0),)},
+        {"start_poses": ((1.0, 2.0, float("nan")),)},
     ):
         with pytest.raises(SettingsError, match=next(iter(bad))):
             NavigationSettings(**bad)
@@ -143,6 +151,46 @@ def test_a_stage_at_the_hand_off_power_runs_and_records_it(tiny_navigation, tmp_
     sel = navigation_starts(stages.stage_rng(ga.seed, "navigation", 1), 200, WORLD)
     ends = evaluate(best, sel, table=TABLE, mode="navigation", start_power=3.99).end
     assert np.mean(ends == END_NAMES.index("docked")) == got["selection"]["dock_rate"]
+
+
+def test_start_poses_are_drawn_with_replacement_from_the_given_poses_only():
+    poses = np.array([[100.0, 50.0, 0.0], [420.0, 250.0, 90.0], [250.0, 400.0, 270.0]])
+    a = pose_starts(np.random.default_rng(3), 500, WORLD, poses=poses)
+    assert a.shape == (500, 3)
+    rows = {tuple(p) for p in poses.tolist()}
+    assert {tuple(p) for p in a.tolist()} == rows  # every pose drawn, nothing else
+    assert np.array_equal(a, pose_starts(np.random.default_rng(3), 500, WORLD, poses=poses))
+    counts = np.array([np.all(a == p, axis=1).sum() for p in poses])
+    assert np.all(np.abs(counts - 500 / 3) < 45)  # uniform: within 4.3 σ of binomial(500, 1/3)
+
+
+def test_a_stage_from_given_start_poses_trains_chooses_and_tests_from_them(
+    tiny_navigation, tmp_path
+):
+    """``start_poses`` (e.g. a coverage run's hand-offs): the stage's start function draws
+    from them (no growing region), the record keeps them, and the reported test docking rate
+    is the chosen section's on test starts drawn from them as the stage draws test starts."""
+    from evolve.evaluation import evaluate
+    from evolve.interpreter import END_NAMES
+
+    _, ga, nav, summary = tiny_navigation
+    poses = ((380.0, 200.0, 0.0), (300.0, 300.0, 45.0), (430.0, 260.0, 350.0), (40.0, 60.0, 200.0))
+    given = dataclasses.replace(nav, start_poses=poses)
+    stage = stages.navigation_stage(WORLD, given, ga.generations)
+    assert stage.training_starts is None  # the curriculum region is not used
+    drawn = stage.starts(np.random.default_rng(0), 50, WORLD)
+    assert {tuple(p) for p in drawn.tolist()} <= set(poses)
+    got = stages.run_navigation(tmp_path, table=TABLE, ga=ga, navigation=given)
+    doc = json.loads((tmp_path / "navigation" / "settings.json").read_text())
+    assert [tuple(p) for p in doc["NavigationSettings"]["start_poses"]] == list(poses)
+    assert "start_poses" not in summary["settings"]["NavigationSettings"]
+    seq = stages.stage_seeds(ga.seed, "navigation", ga.populations)[0]
+    test = pose_starts(np.random.Generator(np.random.PCG64(seq)), ga.test_starts, WORLD,
+                       poses=np.array(poses))  # fmt: skip
+    best = read_chromosome(tmp_path / "navigation" / "best.txt")[None]
+    ends = evaluate(best, test, table=TABLE, mode="navigation").end
+    assert np.mean(ends == END_NAMES.index("docked")) == got["dock_success"]
+    assert 0.0 < got["dock_success"] < 1.0  # the far pose is not docked from, the near ones are
 
 
 def test_a_stricter_docking_band_is_the_stages_world_and_its_section_is_reported_in_the_specs(

@@ -6,7 +6,7 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --starts-per-generation 40 --seed 0
                                 --table paper|PATH --power paper|table
                                 --envelope none|default|FILE.json --nav-start-power V
-                                --nav-dock-tol DEG --first FILE
+                                --nav-dock-tol DEG --nav-starts FILE.csv --first FILE
                                 --out runs/evolve --resume
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE]
@@ -27,8 +27,8 @@ world's turn away from a robot that blocks a move, ``--sections`` one section
 for every robot, a coevolved team of them, or the navigation section learned in the colony
 under the coverage sections of ``--coverage-from``'s finalists, or the last robot's
 section beside robots carrying ``--partners``' (a coverer learned for its team);
-``--nav-start-power``, ``--nav-dock-tol``: ``NavigationSettings.start_power_v``,
-``dock_heading_tol_deg``).
+``--nav-start-power``, ``--nav-dock-tol``, ``--nav-starts``: ``NavigationSettings.start_power_v``,
+``dock_heading_tol_deg``, ``start_poses``).
 ``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
 ``coverage/best_pop{k}.txt``) is accepted too and its genes 8–15, the navigation section,
 are used. Bad input (missing or malformed files, a bad gait table, impossible sizes, a run
@@ -239,6 +239,16 @@ def build_parser() -> argparse.ArgumentParser:
         "hand-off from coverage (NavigationSettings.start_power_v, docs/envelope.md)",
     )
     p.add_argument(
+        "--nav-starts",
+        type=Path,
+        default=None,
+        metavar="FILE.csv",
+        help="navigation only: every run of the stage (training, selection, test) starts from a "
+        "pose of this CSV (columns x, y, h; e.g. a coverage run's handoffs.csv), drawn with "
+        "replacement, instead of SPEC §6's region (NavigationSettings.start_poses, "
+        "docs/robustness.md)",
+    )
+    p.add_argument(
         "--nav-dock-tol",
         type=float,
         default=None,
@@ -434,6 +444,7 @@ STAGE_OPTIONS = (
     ("colony_fitness", "colony"), ("sections", "colony"), ("robots_unseen", "colony"),
     ("contact_yaw", "colony"),
     ("nav_start_power", "navigation"), ("nav_dock_tol", "navigation"),
+    ("nav_starts", "navigation"),
 )  # fmt: skip
 """(option's field, the one stage that takes it): refused with any other stage."""
 
@@ -468,8 +479,14 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     if args.stage == "navigation":
         if args.navigation is not None:
             raise CliError("--navigation is an option of the coverage and colony stages")
+        poses = None
+        if args.nav_starts is not None:
+            from evolve.handoff import read_poses
+
+            poses = tuple(map(tuple, read_poses(args.nav_starts)[0].tolist()))
         nav = stages.NavigationSettings(start_power_v=args.nav_start_power,
-                                        dock_heading_tol_deg=args.nav_dock_tol)  # fmt: skip
+                                        dock_heading_tol_deg=args.nav_dock_tol,
+                                        start_poses=poses)  # fmt: skip
         first = None if args.first is None else load_navigation(args.first, option="--first")
         summary = stages.run_navigation(args.out, navigation=nav, first=first, **kw)
         _print_navigation(summary, args.out)
