@@ -42,7 +42,7 @@ def pose_starts(
     """(n, 3) start poses drawn with replacement from ``poses`` (P, 3), e.g. a coverage run's
     hand-offs (``NavigationSettings.start_poses``); ``world`` is unused, as in every start
     function's signature."""
-    return np.array(poses, dtype=np.float64)[rng.integers(0, len(poses), n)]
+    return np.asarray(poses, dtype=np.float64)[rng.integers(0, len(poses), n)]
 
 
 def navigation_training_starts(
