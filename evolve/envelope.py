@@ -201,6 +201,14 @@ class Envelope:
     and once without, instead of 0, 1 or 2 times by chance. Draw 0 is the unstratified draw;
     tests are never stratified. False: every draw independent."""
 
+    variant_strata: bool = False
+    """[chosen] Stratified robot-variant draws, as ``station_strata``: the ``draws_per_start``
+    draws of a training start share one uniform u of ``STREAM_VARIANT``, and draw d's robot
+    follows (u + d / draws_per_start) mod 1. With ``variant_p`` = K / (K + 1) for K
+    ``variant_tables`` and K + 1 draws, every start is walked once by each robot, the stage's
+    own included; with ``draw_fitness`` ``min`` a start scores its worst robot. Tests are never
+    stratified. False: every draw independent."""
+
     draw_fitness: str = "mean"
     """[chosen] How a start's draws make its run fitness: ``mean`` (the expectation) or ``min``
     (the worst draw: a controller scores what it does in the world of the envelope it copes
@@ -236,9 +244,10 @@ class Envelope:
             raise EnvelopeError(f"variant_p ({self.variant_p:g}) and variant_tables "
                                 f"({len(self.variant_tables)} tables) go together: both or "
                                 "neither")  # fmt: skip
-        if not isinstance(self.station_strata, bool):
-            raise EnvelopeError(f"station_strata must be true or false, got "
-                                f"{self.station_strata!r}")  # fmt: skip
+        for name in ("station_strata", "variant_strata"):
+            if not isinstance(getattr(self, name), bool):
+                raise EnvelopeError(f"{name} must be true or false, got "
+                                    f"{getattr(self, name)!r}")  # fmt: skip
         if not (isinstance(self.station_stops, bool) or self.station_stops == STOPS_ALWAYS):
             raise EnvelopeError(f"station_stops must be true, false or \"always\", got "
                                 f"{self.station_stops!r}")  # fmt: skip
@@ -296,9 +305,11 @@ class Envelope:
         the offset added to it (mod 1): ``(key, 0)`` but for a training draw (seed, g, d ≥ 1)
         of a stratified envelope, whose station follows draw 0's uniform + d / draws_per_start.
         """
-        if self.station_strata and len(key) == 3 and key[1] >= 0 and key[2] >= 1:
-            return key[:2], key[2] / self.draws_per_start
-        return key, 0.0
+        return _stratum(key, self.station_strata, self.draws_per_start)
+
+    def variant_stratum(self, key: tuple[int, ...]) -> tuple[tuple[int, ...], float]:
+        """As ``station_stratum``, for the robot-variant draw (``variant_strata``)."""
+        return _stratum(key, self.variant_strata, self.draws_per_start)
 
     def warmup_generations(self, generations: int) -> int:
         """Generations of a stage of ``generations`` that train in the world of §3."""
@@ -333,8 +344,17 @@ class Envelope:
             raise EnvelopeError(f"{name}: {exc}") from exc
 
 
+def _stratum(key: tuple[int, ...], on: bool, draws: int) -> tuple[tuple[int, ...], float]:
+    """Draw 0's key and d / ``draws`` for a training draw (seed, g, d ≥ 1) when ``on``, else
+    ``(key, 0)``."""
+    if on and len(key) == 3 and key[1] >= 0 and key[2] >= 1:
+        return key[:2], key[2] / draws
+    return key, 0.0
+
+
 TRAINING_DEFAULTS = {
-    "warmup_fraction": 0.0, "draws_per_start": 1, "station_strata": False, "draw_fitness": "mean",
+    "warmup_fraction": 0.0, "draws_per_start": 1, "station_strata": False,
+    "variant_strata": False, "draw_fitness": "mean",
 }  # fmt: skip
 """How training samples an envelope, at their defaults."""
 LATER_DEFAULTS = {

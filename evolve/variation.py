@@ -11,7 +11,8 @@ and of where it is used (``evolve.draws``), never of a stream's state:
   ``STREAM_BIAS`` (triple g of ``normal3``), the activation distance, ``STREAM_REACH``, and
   the pace and turn factors, words 0 and 1 of ``STREAM_PACE``, and whether and which robot
   variant it is, one uniform u of ``STREAM_VARIANT`` (a variant when u < ``variant_p``: table
-  ⌊u / variant_p × K⌋ of the K ``variant_tables``);
+  ⌊u / variant_p × K⌋ of the K ``variant_tables``; stratified draws of a training start share
+  draw 0's u, offset by d / draws, ``Envelope.variant_stratum``);
 - per run of the whole colony: whether the station block is there, ``STREAM_STATION`` of robot
   0's run key, and whether an unseen block stops motion, ``STREAM_STOPS`` of it (one station
   for every robot: ``Variation.station``);
@@ -129,6 +130,10 @@ class Variation:
     """The folded key of the station draws (``Envelope.station_stratum``)."""
     station_offset: float
     """Added (mod 1) to each run's station uniform (``Envelope.station_stratum``)."""
+    variant_trial: int
+    """The folded key of the robot-variant draws (``Envelope.variant_stratum``)."""
+    variant_offset: float
+    """Added (mod 1) to each run's robot-variant uniform (``Envelope.variant_stratum``)."""
 
     @classmethod
     def of(
@@ -146,9 +151,10 @@ class Variation:
         sigma = envelope_sigma(envelope, table)
         words = _check_key(key)
         station_key, offset = envelope.station_stratum(words)
+        variant_key, variant_offset = envelope.variant_stratum(words)
         return cls(envelope, values, sigma, fold(words), station_block(world),
                    float(radius) + envelope.station_margin, float(world.object_range),
-                   fold(station_key), offset)  # fmt: skip
+                   fold(station_key), offset, fold(variant_key), variant_offset)  # fmt: skip
 
     def run_key(self, start: int, robot: int, trial: int | None = None) -> int:
         """Robot ``robot``'s run key at start index ``start`` (of ``trial``; default the
@@ -161,7 +167,8 @@ class Variation:
         key = self.run_key(start, robot)
         table = self.table
         if env.variant_p > 0.0:
-            u = unit(absorb(key, STREAM_VARIANT))
+            u = unit(absorb(self.run_key(start, robot, self.variant_trial), STREAM_VARIANT))
+            u = (u + self.variant_offset) % 1.0
             if u < env.variant_p:
                 k = len(env.variant_tables)
                 table = np.asarray(env.variant_tables[min(int(u / env.variant_p * k), k - 1)])

@@ -44,7 +44,7 @@ from evolve.geometry import block_bits, block_stops, oval_box_gauge2, pack_world
 from evolve.interpreter import END_KILL_ZONE, END_POWER_EMPTY, run, run_colony
 from evolve.population import PopulationRun, evaluate_sections
 from evolve.settings import ColonySettings, GASettings
-from evolve.table import PAPER_TABLE, load_table, table_to_json
+from evolve.table import PAPER_TABLE, GaitTable, load_table, table_to_json
 from evolve.variation import (
     STATION_SEEN,
     STATION_STOPS,
@@ -965,6 +965,47 @@ def test_stratified_station_draws_split_each_start_between_the_worlds():
     np.testing.assert_array_equal(counts, 1)
     test_key = key_of_test(4, "figure9", 1)
     np.testing.assert_array_equal(seen(strata, test_key), seen(plain, test_key))
+
+
+def test_stratified_variant_draws_walk_every_robot_once_per_start_and_min_scores_the_worst(
+    tmp_path,
+):
+    # Two variant tables at p = 2/3 with 3 stratified draws: at every start one draw walks the
+    # stage's table and one each variant (draw 0 the unstratified draw); tests never stratify.
+    # With draw_fitness min a start's fitness is then its worst robot's: the plain world of
+    # each of the three tables run alone, the minimum taken by hand.
+    tables = [PAPER_TABLE, SHORT_STRIDES, TURNS_LESS]
+    plain = Envelope(variant_p=2 / 3, variant_tables=VARIANTS.variant_tables, draws_per_start=3)
+    strata = dataclasses.replace(plain, variant_strata=True)
+
+    def robot(env, key, n=300):
+        var = Variation.of(env, PAPER_TABLE, WORLD, key, 15.0)
+        return np.array([next(k for k, t in enumerate(tables)
+                              if np.array_equal(var.robot(s, 0).rows, t)) for s in range(n)])
+
+    keys = [(4, 7), (4, 7, 1), (4, 7, 2)]
+    picks = np.stack([robot(strata, k) for k in keys], axis=1)
+    np.testing.assert_array_equal(np.sort(picks, axis=1), np.broadcast_to([0, 1, 2], picks.shape))
+    np.testing.assert_array_equal(picks[:, 0], robot(plain, keys[0]))
+    independent = np.stack([robot(plain, k) for k in keys], axis=1)
+    assert np.any(np.sort(independent, axis=1) != [0, 1, 2])  # by chance a robot twice
+    test_key = key_of_test(4, "figure9", 1)
+    np.testing.assert_array_equal(robot(strata, test_key), robot(plain, test_key))
+    assert strata.to_dict()["variant_strata"] is True and "variant_strata" not in plain.to_dict()
+    with pytest.raises(EnvelopeError, match="variant_strata must be true or false"):
+        Envelope(variant_strata="yes")
+
+    worst = dataclasses.replace(strata, draw_fitness="min")
+    ga = dataclasses.replace(TINY, populations=1, generations=1, save_generations=(0, 1))
+    stage = stages.coverage_stage(WORLD, parse_chromosome(LIGHT_FOLLOWER))
+    run = PopulationRun(0, dataclasses.replace(stage, envelope=worst), tmp_path,
+                        seed_seq=np.random.SeedSequence(3), table=load_table("paper"), ga=ga,
+                        world=WORLD, settings_text="{}", resume=False)  # fmt: skip
+    got = run.evaluate()
+    alone = [evaluate_sections(run.pop, got.starts, stage, GaitTable(np.asarray(t)), WORLD)[0]
+             for t in tables]  # fmt: skip
+    assert not np.array_equal(alone[0], alone[1])
+    np.testing.assert_array_equal(got.fitness, np.minimum.reduce(alone).mean(axis=1))
 
 
 def test_draw_fitness_min_scores_each_start_by_its_worst_draw(tmp_path):
