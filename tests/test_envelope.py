@@ -904,18 +904,25 @@ def test_warmup_trains_the_first_generations_in_the_exact_world(tmp_path):
         Envelope(warmup_fraction=1.0)
 
 
-def _two_draws(tmp_path, envelope):
-    """Generation 0 of a population trained in ``envelope`` (2 draws per start): its
-    evaluation, and the run fitness (P, S) of each draw's key evaluated alone in ``LOUD``."""
+def _generation0(tmp_path, envelope):
+    """Generation 0 of a population of the coverage stage trained in ``envelope``: the
+    population run, its evaluation and the stage (envelope ``none``)."""
     ga = dataclasses.replace(TINY, populations=1, generations=1, save_generations=(0, 1))
     stage = stages.coverage_stage(WORLD, parse_chromosome(LIGHT_FOLLOWER))
     run = PopulationRun(0, dataclasses.replace(stage, envelope=envelope), tmp_path,
                         seed_seq=np.random.SeedSequence(3), table=load_table("paper"), ga=ga,
                         world=WORLD, settings_text="{}", resume=False)  # fmt: skip
-    got = run.evaluate()
+    return run, run.evaluate(), stage
+
+
+def _two_draws(tmp_path, envelope):
+    """Generation 0 of a population trained in ``envelope`` (2 draws per start): its
+    evaluation, and the run fitness (P, S) of each draw's key evaluated alone in ``LOUD``."""
+    run, got, stage = _generation0(tmp_path, envelope)
+    seed = run.ga.seed
     per_key = [evaluate_sections(run.pop, got.starts, dataclasses.replace(stage, envelope=LOUD),
                                  load_table("paper"), WORLD, key)[0]
-               for key in ((ga.seed, 0), (ga.seed, 0, 1))]  # fmt: skip
+               for key in ((seed, 0), (seed, 0, 1))]  # fmt: skip
     assert not np.array_equal(per_key[0], per_key[1])
     return got, per_key
 
@@ -995,13 +1002,7 @@ def test_stratified_variant_draws_walk_every_robot_once_per_start_and_min_scores
     with pytest.raises(EnvelopeError, match="variant_strata must be true or false"):
         Envelope(variant_strata="yes")
 
-    worst = dataclasses.replace(strata, draw_fitness="min")
-    ga = dataclasses.replace(TINY, populations=1, generations=1, save_generations=(0, 1))
-    stage = stages.coverage_stage(WORLD, parse_chromosome(LIGHT_FOLLOWER))
-    run = PopulationRun(0, dataclasses.replace(stage, envelope=worst), tmp_path,
-                        seed_seq=np.random.SeedSequence(3), table=load_table("paper"), ga=ga,
-                        world=WORLD, settings_text="{}", resume=False)  # fmt: skip
-    got = run.evaluate()
+    run, got, stage = _generation0(tmp_path, dataclasses.replace(strata, draw_fitness="min"))
     alone = [evaluate_sections(run.pop, got.starts, stage, GaitTable(np.asarray(t)), WORLD)[0]
              for t in tables]  # fmt: skip
     assert not np.array_equal(alone[0], alone[1])
