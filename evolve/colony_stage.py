@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import numbers
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -98,15 +99,17 @@ def colony_stage_fitness(
 def colony_stage(
     world: WorldSettings, colony: ColonySettings, navigation: np.ndarray, envelope: Envelope = NONE,
     coverage: np.ndarray | None = None, partners: np.ndarray | None = None,
-    first: np.ndarray | None = None,
+    first: np.ndarray | None = None, robot: int | None = None,
 ) -> Stage:  # fmt: skip
     """The colony's ``Stage``: coverage mode, colony starts, ``colony.fitness`` as run fitness
     (default the colony squares), in ``envelope``. It evolves coverage sections under the
     fixed ``navigation`` section, or (``colony.sections = "navigation"``) navigation sections
     starting as ``navigation``, population k's under the fixed coverage section
-    ``coverage[k]`` ((K, 8, 30) bits), or (``"beside"``) the coverage section of robot R − 1
-    of a colony whose robots 0 … R − 2 carry the fixed coverage section ``partners`` ((8, 30)
-    bits), every individual of generation 0 carrying ``first`` ((8, 30) bits; None: random)."""
+    ``coverage[k]`` ((K, 8, 30) bits), or (``"beside"``) the coverage section of robot
+    ``robot`` (None: the last, R − 1) of a colony whose other robots carry fixed coverage
+    sections ``partners`` ((8, 30) bits, every other robot's; or (R − 1, 8, 30), theirs in
+    robot order), every individual of generation 0 carrying ``first`` ((8, 30) bits; None:
+    random)."""
     nav = _check_section(navigation)
     check_capacity(world, colony)
     learn_navigation = colony.sections == "navigation"
@@ -117,8 +120,8 @@ def colony_stage(
         )
     if (colony.sections == "beside") != (partners is not None):
         raise StageError(
-            "a partner's coverage section is given exactly when the colony stage learns the last "
-            "robot's section beside it (ColonySettings.sections 'beside', --partners)"
+            "a partner's coverage section is given exactly when the colony stage learns one "
+            "robot's section beside partners (ColonySettings.sections 'beside', --partners)"
         )
     if coverage is not None:
         coverage = np.asarray(coverage)
@@ -144,16 +147,43 @@ def colony_stage(
     if first is not None and partners is None:
         raise StageError(
             "a first section is given only to the colony stage that learns "
-            "the last robot's (ColonySettings.sections 'beside', --first)"
+            "one robot's beside partners (ColonySettings.sections 'beside', --first)"
         )
+    if robot is not None and partners is None:
+        raise StageError("a learned robot is named only for the colony stage that learns one "
+                         "robot's section beside partners (ColonySettings.sections 'beside', "
+                         "--beside-robot)")  # fmt: skip
     if partners is None:
         return stage
     from evolve.coevolution import role_stage
 
-    team = np.broadcast_to(_check_section(partners, "partners'"), (colony.robots, *nav.shape))
+    team, role = beside_team(partners, colony.robots, robot)
     if first is not None:
         stage = dataclasses.replace(stage, initial=_check_section(first, "first"))
-    return role_stage(stage, team, colony.robots - 1)
+    return role_stage(stage, team, role)
+
+
+def beside_team(
+    partners: np.ndarray, robots: int, robot: int | None = None
+) -> tuple[np.ndarray, int]:
+    """((R, 8, 30) sections, the learned robot's index) of a ``"beside"`` colony stage:
+    ``partners`` is the (8, 30) section every robot but the learned one carries, or (R − 1,
+    8, 30) theirs in robot order; ``robot`` (None: R − 1) the learned robot, whose row holds
+    a placeholder (the individual replaces it). ``StageError`` naming what does not fit."""
+    role = robots - 1 if robot is None else robot
+    if not (isinstance(role, numbers.Integral) and not isinstance(role, bool)
+            and 0 <= role < robots):  # fmt: skip
+        raise StageError(f"the learned robot must be one of 0 … {robots - 1} (a colony of "
+                         f"{robots}), got {robot!r}")  # fmt: skip
+    arr = np.asarray(partners)
+    if arr.ndim != 3:
+        one = _check_section(arr, "partners'")
+        return np.broadcast_to(one, (robots, *one.shape)), int(role)
+    if len(arr) != robots - 1:
+        raise StageError(f"{len(arr)} partners' sections for a colony of {robots}: give one "
+                         f"for each of the other {robots - 1} robots, or one for all")  # fmt: skip
+    others = np.stack([_check_section(a, f"partner {i}'s") for i, a in enumerate(arr)])
+    return np.insert(others, role, others[0], axis=0), int(role)
 
 
 def coverage_section(
@@ -212,6 +242,7 @@ def run_colony_stage(
     coverage: np.ndarray | None = None,
     partners: np.ndarray | None = None,
     first: np.ndarray | None = None,
+    robot: int | None = None,
     **options: Unpack[StageOptions],
 ) -> dict[str, Any]:
     """Colony stage (SPEC §7) into ``out/colony``; returns the summary (also
@@ -244,20 +275,26 @@ def run_colony_stage(
 
     ``partners`` (``colony.sections = "beside"`` only): the (8, 30) coverage section robots
     0 … R − 2 carry (e.g. ``coverage_section`` of a colony finalist), recorded in
-    ``settings.json``; the stage evolves robot R − 1's. Figure 9, the final test and Figure 10
-    run the whole colony; ``best_pop{k}.txt`` is robot R − 1's chromosome, and the final
-    test's lone robot is it. ``first``: the (8, 30) section every individual of generation 0
-    carries (e.g. the team's current last robot's; recorded as ``initial_section``); None:
-    random.
+    ``settings.json`` (``partner_section``); the stage evolves robot R − 1's. Or, with
+    ``robot`` the robot it evolves (None: R − 1), the other robots' (R − 1, 8, 30) sections in
+    robot order (recorded as ``partner_sections`` and ``beside_robot``). Figure 9, the final
+    test and Figure 10 run the whole colony; ``best_pop{k}.txt`` is the learned robot's
+    chromosome, and the final test's lone robot is it. ``first``: the (8, 30) section every
+    individual of generation 0 carries (e.g. the team's current section of that robot;
+    recorded as ``initial_section``); None: random.
     """
     folder = Path(out) / "colony"
     run = StageRun(**options)
     if coverage is not None and len(coverage) != ga.populations:
         raise StageError(f"{len(coverage)} coverage sections for {ga.populations} populations")
-    stage = colony_stage(world, colony, navigation, run.envelope, coverage, partners, first)
+    stage = colony_stage(world, colony, navigation, run.envelope, coverage, partners, first, robot)
     extra = None
-    if partners is not None:
+    if partners is not None and np.ndim(partners) == 2 and robot in (None, colony.robots - 1):
         extra = {"partner_section": _gene_text(partners)}
+    elif partners is not None:
+        team, role = beside_team(partners, colony.robots, robot)
+        others = [_gene_text(s) for r, s in enumerate(team) if r != role]
+        extra = {"partner_sections": others, "beside_robot": role}
     if team_from is not None:
         from evolve.coevolution import check_team_from
 
@@ -275,7 +312,8 @@ def _colony(
 
     t0 = time.perf_counter()
     gens = save_generations(ga)
-    beside = colony.sections == "beside"  # finals are teams; the last robot's is the finalist
+    beside = colony.sections == "beside"  # finals are teams; the learned robot's is the finalist
+    role = stage.evaluate.keywords["role"] if beside else 0
     if colony.sections == "team":
         finals, fig9, test_starts = _evolve_teams(stage, folder, doc, table, ga, world, colony,
                                                   run, team_from)  # fmt: skip
@@ -288,7 +326,7 @@ def _colony(
         finals = np.stack([stage.for_population(k).genomes(res.best[None])[0]
                            for k, res in enumerate(results)])  # fmt: skip
         if beside:
-            finals = _beside_teams(stage, finals, colony.robots)
+            finals = _beside_teams(stage, finals)
     inner = fig9[""][0]
     _write_figure9(folder, gens, fig9, stage.envelope)
     r = colony.robots
@@ -296,12 +334,12 @@ def _colony(
         folder / "figure9.png", gens, inner,
         title=f"Figure 9, a colony of {r}: colony inner squares of each population's best",
     )  # fmt: skip
-    final = final_test(finals, test_starts, table, world, colony, lone_robot=r - 1 if beside else 0)
+    final = final_test(finals, test_starts, table, world, colony, lone_robot=role)
     fig10 = []
     start = figure10_starts(world, colony)
     for k, full in enumerate(finals):
-        _write_finalist(folder, k, full[-1] if beside else full, ga, table, world, inner[k, -1],
-                        colony.sections)  # fmt: skip
+        _write_finalist(folder, k, full[role] if beside else full, ga, table, world, inner[k, -1],
+                        colony.sections, role)  # fmt: skip
         fig = figures.colony_figure10(
             folder / f"figure10_pop{k}.png", full, table=table, world=world, colony=colony,
             starts=start, title=f"population {k}",
@@ -350,26 +388,27 @@ def _evolve_teams(
     return np.stack([stage.genomes(res.team) for res in results]), fig9, test_starts
 
 
-def _beside_teams(stage: Stage, finals: np.ndarray, robots: int) -> np.ndarray:
-    """(K, R, 16, 30): each finalist (K, 16, 30) as robot R − 1 of the ``"beside"`` stage's
-    colony, robots 0 … R − 2 carrying the partners' chromosome."""
-    team = stage.evaluate.keywords["partners"]  # (R, 16, 30), set by role_stage
-    out = np.repeat(team[None], len(finals), axis=0)
-    out[:, robots - 1] = finals
+def _beside_teams(stage: Stage, finals: np.ndarray) -> np.ndarray:
+    """(K, R, 16, 30): each finalist (K, 16, 30) as the learned robot of the ``"beside"``
+    stage's colony, the other robots carrying the partners' chromosomes."""
+    team, role = stage.evaluate.keywords["partners"], stage.evaluate.keywords["role"]
+    out = np.repeat(team[None], len(finals), axis=0)  # team: (R, 16, 30), set by role_stage
+    out[:, role] = finals
     return out
 
 
 def _write_finalist(
     folder: Path, k: int, full: np.ndarray, ga: GASettings, table: GaitTable,
-    world: WorldSettings, inner: float, colony_sections: str,
+    world: WorldSettings, inner: float, colony_sections: str, role: int = 0,
 ) -> None:  # fmt: skip
     """``best_pop{k}.txt``, or a team's ``best_pop{k}_robot{r}.txt`` (``full``: (16, 30) or
-    (R, 16, 30)); ``colony_sections``: what the stage learned (``ColonySettings.sections``)."""
+    (R, 16, 30)); ``colony_sections``: what the stage learned (``ColonySettings.sections``),
+    ``role`` the robot a ``"beside"`` stage learned."""
     test = f"Figure 9 test {inner:.1f}% of the {world.inner_square_count} inner squares"
     if full.ndim == 2:
         learned = {
             "navigation": "coverage section (fixed) + navigation (learned as a colony)",
-            "beside": "the last robot's coverage section (learned beside the partners of "
+            "beside": f"robot {role}'s coverage section (learned beside the partners of "
             "settings.json) + navigation (fixed)",
         }.get(colony_sections, "coverage section (learned as a colony) + navigation (fixed)")
         extra = f"16 genes: {learned}; {test}"

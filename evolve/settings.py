@@ -281,11 +281,12 @@ class ColonySettings:
     carrying the fixed coverage section of a finished shared run's finalist k and its
     individuals starting as the navigation section that run carried
     (``evolve.colony_stage.run_colony_stage(coverage=...)``; docs/colony.md "Navigation learned
-    in the colony"). ``"beside"``: the last robot's coverage section, learned beside fixed
-    partners: robots 0 … R−2 carry a given coverage section (``--partners FILE``), every robot
-    the stage's navigation section, and each individual is scored as robot R−1 of that colony
-    (``evolve.colony_stage.run_colony_stage(partners=...)``; docs/colony.md "A coverer
-    learned for its team")."""
+    in the colony"). ``"beside"``: one robot's coverage section (the last, R−1, unless
+    ``--beside-robot`` names another), learned beside fixed partners: the other robots carry
+    given coverage sections (``--partners FILE[,FILE...]``), every robot the stage's
+    navigation section, and each individual is scored as the learned robot of that colony
+    (``evolve.colony_stage.run_colony_stage(partners=..., robot=...)``; docs/colony.md "A
+    coverer learned for its team", "Any robot learned beside its team")."""
 
     def __post_init__(self) -> None:
         if self.fitness not in COLONY_FITNESSES:

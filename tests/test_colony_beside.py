@@ -1,8 +1,9 @@
-"""The colony stage that learns the last robot's coverage section beside fixed partners
-(``ColonySettings.sections = "beside"``, ``--partners``; issue 17, a coverer learned for its
-team): a hand-made pair, the fitness every generation meets redone independently, the
-finalists' files and final test, a first generation started from a given section, resume bit
-for bit, and bad input named."""
+"""The colony stage that learns one robot's coverage section beside fixed partners
+(``ColonySettings.sections = "beside"``, ``--partners``, ``--beside-robot``; issue 17, a
+coverer learned for its team, a liver beside a coverer): a hand-made pair, the fitness every
+generation meets redone independently, the finalists' files and final test, a first
+generation started from a given section, a middle robot between two different partners,
+resume bit for bit, and bad input named."""
 
 from __future__ import annotations
 
@@ -82,6 +83,13 @@ def test_the_finalists_files_and_final_test(runs):
     settings = json.loads((folder / "settings.json").read_text())
     assert settings["ColonySettings"]["sections"] == "beside"
     assert settings["partner_section"] == ["".join(map(str, g)) for g in partner.tolist()]
+    assert_finalists(folder, summary, lambda best: _team(partner, best), robot=2)
+
+
+def assert_finalists(folder, summary, team_of, robot):
+    """Each finalist's file (robot ``robot``'s section + the stage's navigation) and its final
+    test redone: the colony ``team_of(best)`` from the stage's colony test starts, and the
+    finalist alone from each start's robot-0 pose."""
     test_seq, _ = stage_seeds(TINY.seed, "colony", TINY.populations)
     starts = colony_starts(np.random.Generator(np.random.PCG64(test_seq)), TINY.test_starts,
                            WORLD, BESIDE)  # fmt: skip
@@ -89,8 +97,8 @@ def test_the_finalists_files_and_final_test(runs):
         path = folder / f"best_pop{k}.txt"
         best = read_chromosome(path)
         np.testing.assert_array_equal(best[8:], NAV)
-        assert "the last robot's coverage section (learned beside" in path.read_text()
-        team = _team(partner, best)
+        assert f"robot {robot}'s coverage section (learned beside" in path.read_text()
+        team = team_of(best)
         ev = evaluate_colony(team[None, 0], starts, table=TABLE.values, mode="coverage",
                              partners=team, role=0)  # fmt: skip
         lone = evaluate(best[None], np.ascontiguousarray(starts[:, 0]), table=TABLE.values,
@@ -137,9 +145,9 @@ def test_the_first_generation_starts_as_the_given_section(runs, tmp_path):
 
 def test_bad_partners_are_named(runs, tmp_path):
     root, _, partner = runs
-    with pytest.raises(StageError, match="given exactly when the colony stage learns the last"):
+    with pytest.raises(StageError, match="given exactly when the colony stage learns one robot's"):
         run_colony_stage(tmp_path / "a", navigation=NAV, table=TABLE, ga=TINY, partners=partner)
-    with pytest.raises(StageError, match="given exactly when the colony stage learns the last"):
+    with pytest.raises(StageError, match="given exactly when the colony stage learns one robot's"):
         run_colony_stage(tmp_path / "b", navigation=NAV, table=TABLE, ga=TINY, colony=BESIDE)
     with pytest.raises(StageError, match=r"the partners. section must be an \(8, 30\) array"):
         colony_stage(WORLD, BESIDE, NAV, partners=partner[:7])
@@ -194,3 +202,102 @@ def test_the_command_line(runs, tmp_path, capsys):
         == ["".join(map(str, g)) for g in partner.tolist()]
     )
     np.testing.assert_array_equal(read_chromosome(out / "colony/best_pop0.txt")[8:], NAV)
+
+
+def test_robot_0_beside_a_hand_made_partner():
+    """The hand-made pair with the learned robot first (``robot=0``, the partner given as the
+    other robot's section): WALK as robot 0 from (400, 250), STAND as robot 1 at (125, 125),
+    reaches the walker's squares alone + 1, as with the walker last."""
+    pair = ColonySettings(robots=2, sections="beside")
+    starts = np.array([[[400.0, 250.0, 0.0], [125.0, 125.0, 0.0]]])
+    walker = colony_stage(WORLD, pair, NAV, partners=STAND[None], robot=0)
+    lone = evaluate(walker.genomes(WALK[None]), starts[:, 0], table=TABLE.values, mode="coverage")
+    got = evaluate_sections(WALK[None], starts, walker, TABLE, WORLD)[0]
+    assert got[0, 0] == lone.squares[0, 0] + 1
+
+
+@pytest.fixture(scope="module")
+def middle(runs, tmp_path_factory):
+    """Robot 1 learned beside robot 0 = shared finalist 0 and robot 2 = shared finalist 1."""
+    root = runs[0]
+    others = np.stack([coverage_section(root / f"shared/colony/best_pop{k}.txt", NAV)
+                       for k in (0, 1)])  # fmt: skip
+    out = tmp_path_factory.mktemp("colony_beside_middle")
+    summary = run_colony_stage(out, navigation=NAV, table=TABLE, ga=TINY, colony=BESIDE,
+                               partners=others, robot=1)  # fmt: skip
+    return out, summary, others
+
+
+def test_a_middle_robot_beside_two_different_partners(middle):
+    """Generation 1's fitness redone as robot 1 between the two partners' sections; the
+    finalists' files, final test (its lone robot the learned one) and the record."""
+    out, summary, others = middle
+    folder = out / "colony"
+
+    def team(section):
+        full = [np.concatenate([s, NAV]) for s in (others[0], section[:8], others[1])]
+        return np.stack(full)
+
+    gen1 = np.load(folder / "populations/pop0_gen0001.npz")
+    for i in (0, 5):
+        t = team(gen1["population"][i])
+        ev = evaluate_colony(t[None, 1], gen1["starts"], table=TABLE.values, mode="coverage",
+                             partners=t, role=1)  # fmt: skip
+        assert ev.squares[0].mean() == pytest.approx(gen1["fitness"][i])
+    settings = json.loads((folder / "settings.json").read_text())
+    assert settings["beside_robot"] == 1 and "partner_section" not in settings
+    assert settings["partner_sections"] == [["".join(map(str, g)) for g in s.tolist()]
+                                            for s in others]  # fmt: skip
+    assert_finalists(folder, summary, team, robot=1)
+
+
+def test_a_middle_robot_resumes_and_refuses_other_partners(middle, tmp_path):
+    from infra.errors import InputError
+
+    out, _, others = middle
+    assert_resumes_bit_for_bit(out, tmp_path, "pop1.npz", colony=BESIDE, partners=others,
+                               robot=1)  # fmt: skip
+    for kw, field in ((dict(partners=others[::-1], robot=1), "partner_sections"),
+                      (dict(partners=others, robot=0), "beside_robot")):  # fmt: skip
+        with pytest.raises(InputError, match=field):
+            run_colony_stage(tmp_path, navigation=NAV, table=TABLE, ga=TINY, colony=BESIDE,
+                             resume=True, **kw)  # fmt: skip
+
+
+def test_bad_learned_robots_are_named(runs):
+    partner = runs[2]
+    for robot in (3, -1, True, 1.0):
+        with pytest.raises(StageError, match=rf"learned robot must be one of 0 … 2 .*{robot!r}"):
+            colony_stage(WORLD, BESIDE, NAV, partners=partner, robot=robot)
+    with pytest.raises(StageError, match="3 partners' sections for a colony of 3: give one for "
+                                         "each of the other 2 robots"):  # fmt: skip
+        colony_stage(WORLD, BESIDE, NAV, partners=np.stack([partner] * 3))
+    with pytest.raises(StageError, match=r"the partner 1's section must be an \(8, 30\)"):
+        colony_stage(WORLD, BESIDE, NAV, partners=np.stack([partner, 2 * partner]))
+    with pytest.raises(StageError, match="a learned robot is named only for the colony stage"):
+        colony_stage(WORLD, ColonySettings(), NAV, robot=0)
+
+
+def test_the_command_line_names_a_learned_robot(runs, middle, tmp_path, capsys):
+    from servobot.cli import main
+
+    root = runs[0]
+    nav = tmp_path / "nav.txt"
+    nav.write_text(LIGHT_FOLLOWER)
+    files = ",".join(str(root / f"shared/colony/best_pop{k}.txt") for k in (0, 1))
+    common = ["--populations", "1", "--generations", "2", "--population-size", "4",
+              "--starts-per-generation", "2", "--navigation", str(nav),
+              "--no-progress"]  # fmt: skip
+    assert main(["evolve", "colony", "--beside-robot", "1", *common,
+                 "--out", str(tmp_path / "x")]) == 2  # fmt: skip
+    assert "--beside-robot is an option of the colony stage with --sections beside" in (
+        capsys.readouterr().err
+    )
+    out = tmp_path / "z"
+    assert main(["evolve", "colony", "--sections", "beside", "--partners", files,
+                 "--beside-robot", "1", *common, "--out", str(out)]) == 0  # fmt: skip
+    settings = json.loads((out / "colony/settings.json").read_text())
+    assert settings["beside_robot"] == 1
+    recorded = json.loads((middle[0] / "colony/settings.json").read_text())
+    assert settings["partner_sections"] == recorded["partner_sections"]
+    assert "robot 1's coverage section" in (out / "colony/best_pop0.txt").read_text()

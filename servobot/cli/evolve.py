@@ -15,7 +15,8 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --alive-weight 8 --dock-weight 4 --dock-cap 2
                                 --start-power-spread 0 --robots-unseen --contact-yaw 0
                                 --sections shared|team|navigation|beside --team-from DIR
-                                --coverage-from DIR --partners FILE --first FILE]
+                                --coverage-from DIR --partners FILE[,FILE...]
+                                --beside-robot K --first FILE]
 
 Defaults are the paper's scale (SPEC §5, §6): ``navigation_ga_settings()`` for navigation,
 ``GASettings()`` for coverage and the colony (SPEC §7: ``ColonySettings``, ``--robots`` its
@@ -25,8 +26,9 @@ scores, ``--alive-weight`` (with ``alive``), ``--dock-weight`` and ``--dock-cap`
 ``--robots-unseen`` object sensors blind to the other robots, ``--contact-yaw`` the table
 world's turn away from a robot that blocks a move, ``--sections`` one section
 for every robot, a coevolved team of them, or the navigation section learned in the colony
-under the coverage sections of ``--coverage-from``'s finalists, or the last robot's
-section beside robots carrying ``--partners``' (a coverer learned for its team);
+under the coverage sections of ``--coverage-from``'s finalists, or one robot's section
+(``--beside-robot``, default the last) beside robots carrying ``--partners``' (a coverer
+learned for its team, or a liver learned beside a coverer);
 ``--nav-start-power``, ``--nav-dock-tol``, ``--nav-starts``: ``NavigationSettings.start_power_v``,
 ``dock_heading_tol_deg``, ``start_poses``).
 ``--navigation`` defaults to ``DIR/navigation/best.txt``; a 16-gene file (e.g. a
@@ -164,12 +166,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--partners",
-        type=Path,
+        type=_paths,
         default=None,
-        metavar="FILE",
+        metavar="FILE[,FILE...]",
         help="colony, --sections beside: robots 0 … R−2 carry the coverage section of this "
         "16-gene chromosome (its navigation section must be --navigation's); the stage learns "
-        "robot R−1's; docs/colony.md",
+        "robot R−1's. Or R−1 files, comma-separated: the other robots' chromosomes in robot "
+        "order, the learned robot left out; docs/colony.md",
+    )
+    p.add_argument(
+        "--beside-robot",
+        type=int,
+        default=None,
+        metavar="K",
+        help="colony, --sections beside: the robot whose coverage section the stage learns "
+        "(0 … R−1; default the last, R−1)",
     )
     p.add_argument(
         "--first",
@@ -179,7 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="navigation: every individual of generation 0 carries this file's navigation "
         "section (8 genes, or genes 8–15 of 16) instead of a random one; colony, --sections "
         "beside: this 16-gene chromosome's coverage section (genes 0–7, e.g. the team's "
-        "current last robot's)",
+        "current section of the learned robot)",
     )
     p.add_argument(
         "--coverage-from",
@@ -311,6 +322,14 @@ def ga_settings(args: argparse.Namespace) -> GASettings:
     if ga.seed < 0:
         raise CliError(f"--seed must be ≥ 0, got {ga.seed}")
     return ga
+
+
+def _paths(text: str) -> list[Path]:
+    """``FILE[,FILE...]`` as paths (``--partners``)."""
+    paths = [Path(f.strip()) for f in text.split(",") if f.strip()]
+    if not paths:
+        raise argparse.ArgumentTypeError("no file named")
+    return paths
 
 
 def load_navigation(path: Path, *, given: bool = True, option: str = "--navigation") -> np.ndarray:
@@ -465,6 +484,8 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     if (args.partners is not None) != (args.sections == "beside"):
         raise CliError("--sections beside needs --partners FILE, and --partners is an option of "
                        "the colony stage with --sections beside")  # fmt: skip
+    if args.beside_robot is not None and args.sections != "beside":
+        raise CliError("--beside-robot is an option of the colony stage with --sections beside")
     if args.first is not None and args.stage != "navigation" and args.sections != "beside":
         raise CliError("--first is an option of the navigation stage and of the colony stage "
                        "with --sections beside")  # fmt: skip
@@ -511,12 +532,13 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
         if args.partners is not None:
             from evolve.colony_stage import coverage_section
 
-            partners = coverage_section(args.partners, navigation)
+            sections = [coverage_section(f, navigation) for f in args.partners]
+            partners = sections[0] if len(sections) == 1 else np.stack(sections)
             if args.first is not None:
                 first = coverage_section(args.first, option="--first")
         summary = run_colony_stage(args.out, navigation=navigation, colony=colony,
                                    team_from=team_from, coverage=coverage, partners=partners,
-                                   first=first, **kw)  # fmt: skip
+                                   first=first, robot=args.beside_robot, **kw)  # fmt: skip
         _print_colony(summary, args.out)
     return 0
 

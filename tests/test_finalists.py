@@ -1,0 +1,38 @@
+"""The chromosomes kept in ``docs/finalists`` (the ones the docs' measurements rest on): each
+parses as a navigation section or a whole chromosome, the folder's README lists exactly them,
+and each coverage finalist carries the navigation section its name says it evolved on."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evolve.codec import SECTION_GENES, read_chromosome
+
+FOLDER = Path(__file__).resolve().parents[1] / "docs" / "finalists"
+FILES = sorted(FOLDER.glob("*.txt"))
+
+
+def test_the_readme_lists_every_kept_chromosome():
+    listed = set(re.findall(r"^\| `([^`]+\.txt)` \|", (FOLDER / "README.md").read_text(), re.M))
+    assert listed == {f.name for f in FILES}
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: p.name)
+def test_each_file_is_a_section_or_a_whole_chromosome(path):
+    bits = read_chromosome(path)
+    assert bits.shape in ((SECTION_GENES, 30), (2 * SECTION_GENES, 30))
+    assert path.name.startswith("nav_") == (bits.shape[0] == SECTION_GENES)
+
+
+@pytest.mark.parametrize(
+    ("coverage", "navigation"),
+    [("cov_s1_sliphalf_p13g0896_pop4.txt", "nav_s1_p13g0896.txt"),
+     ("cov_s1_sliphalf_worst_handoffs_pop3.txt", "nav_s1_worst_handoffs.txt")],
+)  # fmt: skip
+def test_coverage_finalists_carry_their_navigation_section(coverage, navigation):
+    full = read_chromosome(FOLDER / coverage)
+    np.testing.assert_array_equal(full[SECTION_GENES:], read_chromosome(FOLDER / navigation))
