@@ -301,3 +301,37 @@ def test_the_command_line_names_a_learned_robot(runs, middle, tmp_path, capsys):
     recorded = json.loads((middle[0] / "colony/settings.json").read_text())
     assert settings["partner_sections"] == recorded["partner_sections"]
     assert "robot 1's coverage section" in (out / "colony/best_pop0.txt").read_text()
+
+
+def test_the_saved_bests_screen(runs, middle, tmp_path, capsys):
+    """``evolve.beside_screen``: every saved best of both tiny stages as its learned robot; the
+    final generation's saved best of each population is its finalist, so its row is the stage's
+    own final test; rows best first by run fitness; ``--save`` writes the chromosome."""
+    from evolve.beside_screen import BesideScreenError, load_beside_run, main, screen
+    from evolve.population import save_generations
+
+    for out, summary, robot in ((runs[0] / "beside", runs[1], 2), (middle[0], middle[1], 1)):
+        run = load_beside_run(out)
+        assert run.role == robot
+        rows = screen(run)
+        assert len(rows) == TINY.populations * len(save_generations(TINY))
+        fitness = [r["run_fitness"] for r in rows]
+        assert fitness == sorted(fitness, reverse=True)
+        by_name = {r["name"]: r for r in rows}
+        for k, final in enumerate(summary["final_test"]):
+            row = by_name[f"pop{k}_gen{TINY.generations:04d}"]
+            for key in ("colony_inner_percent", "live_at_end_per_run", "run_fitness",
+                        "one_robot_inner_percent"):  # fmt: skip
+                assert row[key] == pytest.approx(final[key])
+    name = f"pop1_gen{TINY.generations:04d}"
+    assert main([str(middle[0]), "--save", name, str(tmp_path / "s.txt")]) == 0
+    assert capsys.readouterr().out == f"wrote {tmp_path / 's.txt'}\n"
+    np.testing.assert_array_equal(read_chromosome(tmp_path / "s.txt"),
+                                  read_chromosome(middle[0] / "colony/best_pop1.txt"))  # fmt: skip
+    assert main([str(middle[0]), "--top", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "as robot 1 of 3" in out and len(out.strip().splitlines()) == 4
+    assert main([str(middle[0]), "--save", "pop9_gen0001", str(tmp_path / "x.txt")]) == 2
+    assert "no saved best 'pop9_gen0001'" in capsys.readouterr().err
+    with pytest.raises(BesideScreenError, match="not a 'beside' stage"):
+        load_beside_run(runs[0] / "shared")
