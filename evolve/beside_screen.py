@@ -28,11 +28,10 @@ import numpy as np
 
 from evolve.checkpoint import read_npz
 from evolve.codec import write_chromosome
-from evolve.colony_stage import beside_team, final_test
+from evolve.colony_stage import beside_teams, colony_stage, final_test
 from evolve.colony_timeline import run_settings
-from evolve.population import stage_seeds
+from evolve.population import Stage, stage_seeds
 from evolve.settings import ColonySettings, GASettings, WorldSettings
-from evolve.starts import colony_starts
 from evolve.table import GaitTable, validate_table
 from infra.errors import InputError
 from infra.io import read_json
@@ -46,21 +45,22 @@ class BesideScreenError(InputError, ValueError):
 
 @dataclass(frozen=True)
 class BesideRun:
-    """A ``"beside"`` colony stage's record: its settings, team and colony test starts."""
+    """A ``"beside"`` colony stage's record: its settings, its ``Stage`` (team, learned robot
+    and navigation, rebuilt by ``colony_stage``) and colony test starts."""
 
     folder: Path
     world: WorldSettings
     colony: ColonySettings
     ga: GASettings
     table: GaitTable
-    navigation: np.ndarray
-    """(8, 30) bits: every robot's navigation section."""
-    team: np.ndarray
-    """(R, 8, 30) bits: the coverage sections, row ``role`` a placeholder."""
-    role: int
-    """The learned robot."""
+    stage: Stage
     starts: np.ndarray
     """(T, R, 3): the stage's colony test starts."""
+
+    @property
+    def role(self) -> int:
+        """The learned robot."""
+        return self.stage.evaluate.keywords["role"]
 
 
 def _bits(rows: Any, what: str, path: Path) -> np.ndarray:
@@ -85,16 +85,14 @@ def load_beside_run(run_dir: str | Path) -> BesideRun:
     doc = read_json(path, what="colony settings", error=BesideScreenError)
     nav = _bits(doc.get("navigation_section"), "navigation_section", path)
     if "partner_sections" in doc:
-        others = np.stack([_bits(s, "partner_sections", path) for s in doc["partner_sections"]])
-        team, role = beside_team(others, colony.robots, doc.get("beside_robot"))
+        partners = np.stack([_bits(s, "partner_sections", path) for s in doc["partner_sections"]])
     else:
-        team, role = beside_team(_bits(doc.get("partner_section"), "partner_section", path),
-                                 colony.robots)  # fmt: skip
-    test_seq, _ = stage_seeds(ga.seed, "colony", ga.populations)
-    starts = colony_starts(np.random.Generator(np.random.PCG64(test_seq)), ga.test_starts, world,
-                           colony)  # fmt: skip
+        partners = _bits(doc.get("partner_section"), "partner_section", path)
+    stage = colony_stage(world, colony, nav, partners=partners, robot=doc.get("beside_robot"))
+    test_seq, _ = stage_seeds(ga.seed, stage.name, ga.populations)
+    starts = stage.starts(np.random.Generator(np.random.PCG64(test_seq)), ga.test_starts, world)
     table = GaitTable(validate_table(values), source=source or "recorded")
-    return BesideRun(Path(run_dir, "colony"), world, colony, ga, table, nav, team, role, starts)
+    return BesideRun(Path(run_dir, "colony"), world, colony, ga, table, stage, starts)
 
 
 def saved_bests(run: BesideRun) -> dict[str, np.ndarray]:
@@ -107,19 +105,11 @@ def saved_bests(run: BesideRun) -> dict[str, np.ndarray]:
     return {f.stem: read_npz(f, "saved generation", ("best",))["best"] for _, _, f in files}
 
 
-def full_team(run: BesideRun, section: np.ndarray) -> np.ndarray:
-    """(R, 16, 30): the stage's team with ``section`` as the learned robot's coverage."""
-    team = run.team.copy()
-    team[run.role] = section
-    nav = np.broadcast_to(run.navigation, team.shape)
-    return np.concatenate([team, nav], axis=1)
-
-
 def screen(run: BesideRun) -> list[dict[str, Any]]:
     """Every saved best as the learned robot, on the stage's colony test starts: rows of
     ``final_test`` (``name`` added), highest run fitness first (ties: saved order)."""
     saved = saved_bests(run)
-    teams = np.stack([full_team(run, s) for s in saved.values()])
+    teams = beside_teams(run.stage, run.stage.genomes(np.stack(list(saved.values()))))
     rows = final_test(teams, run.starts, run.table, run.world, run.colony, lone_robot=run.role)
     for row, name in zip(rows, saved, strict=True):
         row["name"] = name
@@ -133,7 +123,7 @@ def save_chromosome(run: BesideRun, name: str, out: Path) -> None:
     saved = saved_bests(run)
     if name not in saved:
         raise BesideScreenError(f"{run.folder}: no saved best {name!r} (e.g. {next(iter(saved))})")
-    bits = np.concatenate([saved[name], run.navigation])
+    bits = run.stage.genomes(saved[name][None])[0]
     write_chromosome(out, bits, f"saved best {name} of {run.folder} (robot {run.role} of its team)")
 
 

@@ -289,12 +289,13 @@ def run_colony_stage(
         raise StageError(f"{len(coverage)} coverage sections for {ga.populations} populations")
     stage = colony_stage(world, colony, navigation, run.envelope, coverage, partners, first, robot)
     extra = None
-    if partners is not None and np.ndim(partners) == 2 and robot in (None, colony.robots - 1):
-        extra = {"partner_section": _gene_text(partners)}
-    elif partners is not None:
-        team, role = beside_team(partners, colony.robots, robot)
-        others = [_gene_text(s) for r, s in enumerate(team) if r != role]
-        extra = {"partner_sections": others, "beside_robot": role}
+    if partners is not None:
+        team, role = stage.evaluate.keywords["partners"], stage.evaluate.keywords["role"]
+        if np.ndim(partners) == 2 and role == colony.robots - 1:
+            extra = {"partner_section": _gene_text(partners)}
+        else:
+            others = [_gene_text(s[:SECTION_GENES]) for r, s in enumerate(team) if r != role]
+            extra = {"partner_sections": others, "beside_robot": role}
     if team_from is not None:
         from evolve.coevolution import check_team_from
 
@@ -326,7 +327,7 @@ def _colony(
         finals = np.stack([stage.for_population(k).genomes(res.best[None])[0]
                            for k, res in enumerate(results)])  # fmt: skip
         if beside:
-            finals = _beside_teams(stage, finals)
+            finals = beside_teams(stage, finals)
     inner = fig9[""][0]
     _write_figure9(folder, gens, fig9, stage.envelope)
     r = colony.robots
@@ -388,7 +389,7 @@ def _evolve_teams(
     return np.stack([stage.genomes(res.team) for res in results]), fig9, test_starts
 
 
-def _beside_teams(stage: Stage, finals: np.ndarray) -> np.ndarray:
+def beside_teams(stage: Stage, finals: np.ndarray) -> np.ndarray:
     """(K, R, 16, 30): each finalist (K, 16, 30) as the learned robot of the ``"beside"``
     stage's colony, the other robots carrying the partners' chromosomes."""
     team, role = stage.evaluate.keywords["partners"], stage.evaluate.keywords["role"]
