@@ -70,6 +70,7 @@ from servobot.cli.options import (
     add_envelope_option,
     add_executor_option,
     add_ga_options,
+    comma_list,
     envelope_from_args,
     executor_from_args,
 )
@@ -326,7 +327,7 @@ def ga_settings(args: argparse.Namespace) -> GASettings:
 
 def _paths(text: str) -> list[Path]:
     """``FILE[,FILE...]`` as paths (``--partners``)."""
-    paths = [Path(f.strip()) for f in text.split(",") if f.strip()]
+    paths = [Path(f) for f in comma_list(text)]
     if not paths:
         raise argparse.ArgumentTypeError("no file named")
     return paths

@@ -24,6 +24,12 @@ METAVAR = "|".join(EXECUTOR_SPECS)
 MODEL_HELP = "robot model file, e.g. from 'servobot variant' (default: the shipped ServoBot)"
 
 
+def comma_list(text: str) -> tuple[str, ...]:
+    """argparse type of a comma-separated list (``--worlds``, ``--partners``): its non-empty
+    items, stripped; what they name is checked where they are used."""
+    return tuple(w.strip() for w in text.split(",") if w.strip())
+
+
 def executor_spec(text: str) -> str:
     """argparse type of ``--executor``: a valid spec, with Ray installed when it names Ray."""
     try:

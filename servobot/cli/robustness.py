@@ -17,7 +17,7 @@ from pathlib import Path
 
 from infra.bounds import check_workers
 from infra.command import EXIT_FAILED, Interrupted, command_line, run_command
-from servobot.cli.options import add_executor_option, executor_from_args
+from servobot.cli.options import add_executor_option, comma_list, executor_from_args
 from servobot.progress import RunBar
 from servobot.robustness.matrix import RobustnessSettings, run_matrix
 from servobot.robustness.report import markdown
@@ -27,11 +27,6 @@ PROG = "servobot robustness"
 DEFAULT_OUT = Path("runs/robustness")
 """Default output folder."""
 _DEFAULTS = RobustnessSettings()
-
-
-def _worlds(text: str) -> tuple[str, ...]:
-    """argparse type of ``--worlds``: a comma-separated list (checked by the library)."""
-    return tuple(w.strip() for w in text.split(",") if w.strip())
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -52,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--worlds",
-        type=_worlds,
+        type=comma_list,
         default=_DEFAULTS.worlds,
         metavar="LIST",
         help="comma-separated physics worlds: built-in names or servobot variant "
