@@ -625,6 +625,7 @@ def run_coverage(
     table: GaitTable,
     ga: GASettings = DEFAULT_GA,
     world: WorldSettings = DEFAULT_WORLD,
+    first: np.ndarray | None = None,
     **options: Unpack[StageOptions],
 ) -> dict[str, Any]:
     """Coverage stage (SPEC §5) into ``out/coverage`` with Figures 8–10; returns the summary.
@@ -643,10 +644,16 @@ def run_coverage(
     the same test starts (key ``key_of_test(seed, "figure9")``): ``envelope_figure9_*``,
     ``envelope_final_*`` beside the keys above (the world of §3), and ``envelope`` (its
     fields); hand-offs and Figure 10 stay in the world of §3.
+
+    ``first``: an (8, 30) coverage section every individual of generation 0 carries, as in
+    ``run_navigation`` (e.g. a finalist evolved in one envelope refined in another); None: a
+    random generation 0.
     """
     out = Path(out)
     run = StageRun(**options)
     stage = coverage_stage(world, navigation, run.envelope)
+    if first is not None:
+        stage = dataclasses.replace(stage, initial=_check_section(first, "first"))
     with _stage_folder(stage, out / "coverage", table, ga, world, run.resume, run.force) as doc:
         return _coverage(stage, out, doc, table, ga, world, run)
 

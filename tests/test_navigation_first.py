@@ -68,6 +68,3 @@ def test_the_command_line(tmp_path, capsys):
     assert main(["evolve", "navigation", "--first", str(tmp_path / "missing.txt"), *common,
                  "--out", str(tmp_path / "m")]) == 2  # fmt: skip
     assert "--first" in (err := capsys.readouterr().err) and "missing.txt: no such file" in err
-    assert main(["evolve", "coverage", "--first", str(full), *common,
-                 "--out", str(tmp_path / "c")]) == 2  # fmt: skip
-    assert "--first is an option of the navigation stage" in capsys.readouterr().err

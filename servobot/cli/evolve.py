@@ -9,7 +9,7 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --nav-dock-tol DEG --nav-starts FILE.csv --first FILE
                                 --out runs/evolve --resume
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
-    servobot evolve coverage   [... --generations 512 ... --navigation FILE]
+    servobot evolve coverage   [... --generations 512 ... --navigation FILE --first FILE]
     servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide
                                 --colony-fitness squares|alive|per_step|docks
                                 --alive-weight 8 --dock-weight 4 --dock-cap 2
@@ -189,9 +189,10 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="FILE",
         help="navigation: every individual of generation 0 carries this file's navigation "
-        "section (8 genes, or genes 8–15 of 16) instead of a random one; colony, --sections "
-        "beside: this 16-gene chromosome's coverage section (genes 0–7, e.g. the team's "
-        "current section of the learned robot)",
+        "section (8 genes, or genes 8–15 of 16) instead of a random one; coverage, and colony "
+        "with --sections beside: this 16-gene chromosome's coverage section (genes 0–7, e.g. a "
+        "finalist evolved in another envelope, or the team's current section of the learned "
+        "robot)",
     )
     p.add_argument(
         "--coverage-from",
@@ -487,9 +488,9 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
                        "the colony stage with --sections beside")  # fmt: skip
     if args.beside_robot is not None and args.sections != "beside":
         raise CliError("--beside-robot is an option of the colony stage with --sections beside")
-    if args.first is not None and args.stage != "navigation" and args.sections != "beside":
-        raise CliError("--first is an option of the navigation stage and of the colony stage "
-                       "with --sections beside")  # fmt: skip
+    if args.first is not None and args.stage == "colony" and args.sections != "beside":
+        raise CliError("--first is an option of the navigation and coverage stages and of the "
+                       "colony stage with --sections beside")  # fmt: skip
     colony = _colony(args)
     ga = ga_settings(args)
     table = load_table(args.table)
@@ -516,7 +517,13 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
     navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt",
                                  given=args.navigation is not None)  # fmt: skip
     if args.stage == "coverage":
-        _print_coverage(stages.run_coverage(args.out, navigation=navigation, **kw), args.out)
+        first = None
+        if args.first is not None:
+            from evolve.colony_stage import coverage_section
+
+            first = coverage_section(args.first, option="--first")
+        summary = stages.run_coverage(args.out, navigation=navigation, first=first, **kw)
+        _print_coverage(summary, args.out)
     else:
         from evolve.colony_stage import run_colony_stage
 
