@@ -189,7 +189,7 @@ def test_the_command_line(runs, tmp_path, capsys):
     )
     assert main(["evolve", "colony", "--first", shared, *common,
                  "--out", str(tmp_path / "w")]) == 2  # fmt: skip
-    assert "--first is an option of the navigation stage and of the colony stage" in (
+    assert "--first is an option of the navigation and coverage stages and of the colony" in (
         capsys.readouterr().err
     )
     out = tmp_path / "z"

@@ -516,12 +516,10 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
         return 0
     navigation = load_navigation(args.navigation or args.out / "navigation" / "best.txt",
                                  given=args.navigation is not None)  # fmt: skip
-    if args.stage == "coverage":
-        first = None
-        if args.first is not None:
-            from evolve.colony_stage import coverage_section
+    from evolve.colony_stage import coverage_section
 
-            first = coverage_section(args.first, option="--first")
+    first = None if args.first is None else coverage_section(args.first, option="--first")
+    if args.stage == "coverage":
         summary = stages.run_coverage(args.out, navigation=navigation, first=first, **kw)
         _print_coverage(summary, args.out)
     else:
@@ -536,14 +534,10 @@ def _run(args: argparse.Namespace, bars: GenerationBars) -> int:
             from evolve.colony_stage import finalists_coverage
 
             coverage = finalists_coverage(args.coverage_from, ga.populations)
-        partners = first = None
+        partners = None
         if args.partners is not None:
-            from evolve.colony_stage import coverage_section
-
             sections = [coverage_section(f, navigation) for f in args.partners]
             partners = sections[0] if len(sections) == 1 else np.stack(sections)
-            if args.first is not None:
-                first = coverage_section(args.first, option="--first")
         summary = run_colony_stage(args.out, navigation=navigation, colony=colony,
                                    team_from=team_from, coverage=coverage, partners=partners,
                                    first=first, robot=args.beside_robot, **kw)  # fmt: skip
