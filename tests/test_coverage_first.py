@@ -6,11 +6,11 @@ refused, and the command line takes a 16-gene file's genes 0–7 and refuses bad
 from __future__ import annotations
 
 import dataclasses
-import json
 
 import numpy as np
 import pytest
 from chromosome_text import LIGHT_FOLLOWER, B, G, chrom, gene
+from test_navigation_first import assert_generation_0_is
 from test_stages import TABLE, TINY
 
 from evolve import stages
@@ -26,14 +26,7 @@ WALKER = chrom(gene("00", B(4, 1), G(0), G(0), G(0)), gene("00", G(11), G(11), B
 def test_generation_0_is_the_given_section_and_it_is_recorded(tmp_path):
     ga = dataclasses.replace(TINY, populations=2, generations=2, save_generations=(0,))
     stages.run_coverage(tmp_path / "run", navigation=NAV, table=TABLE, ga=ga, first=WALKER)
-    folder = tmp_path / "run/coverage"
-    for k in range(2):
-        gen0 = np.load(folder / f"populations/pop{k}_gen0000.npz")
-        assert (gen0["population"] == WALKER).all()
-        assert np.ptp(gen0["fitness"]) == 0  # one section: one fitness
-        np.testing.assert_array_equal(gen0["best"], WALKER)
-    settings = json.loads((folder / "settings.json").read_text())
-    assert settings["initial_section"] == ["".join(map(str, g)) for g in WALKER.tolist()]
+    assert_generation_0_is(tmp_path / "run/coverage", WALKER, 2)
     stages.run_coverage(tmp_path / "random", navigation=NAV, table=TABLE, ga=ga)
     gen0 = np.load(tmp_path / "random/coverage/populations/pop0_gen0000.npz")
     assert not (gen0["population"] == WALKER).all()

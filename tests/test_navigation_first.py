@@ -24,18 +24,23 @@ def _first(tmp_path):
     return stages.navigation_section(read_chromosome(path))
 
 
-def test_generation_0_is_the_given_section_and_it_is_recorded(tmp_path):
-    first = _first(tmp_path)
-    ga = dataclasses.replace(TINY, populations=2, generations=2, save_generations=(0,))
-    stages.run_navigation(tmp_path / "run", table=TABLE, ga=ga, first=first)
-    folder = tmp_path / "run/navigation"
-    for k in range(2):
+def assert_generation_0_is(folder, first, populations):
+    """Every population's saved generation 0 in stage ``folder`` is ``first`` throughout, and
+    the stage's record names it."""
+    for k in range(populations):
         gen0 = np.load(folder / f"populations/pop{k}_gen0000.npz")
         assert (gen0["population"] == first).all()
         assert np.ptp(gen0["fitness"]) == 0  # one section: one fitness
         np.testing.assert_array_equal(gen0["best"], first)
     settings = json.loads((folder / "settings.json").read_text())
     assert settings["initial_section"] == ["".join(map(str, g)) for g in first.tolist()]
+
+
+def test_generation_0_is_the_given_section_and_it_is_recorded(tmp_path):
+    first = _first(tmp_path)
+    ga = dataclasses.replace(TINY, populations=2, generations=2, save_generations=(0,))
+    stages.run_navigation(tmp_path / "run", table=TABLE, ga=ga, first=first)
+    assert_generation_0_is(tmp_path / "run/navigation", first, 2)
     # Without it generation 0 is random: the same seed gives another population.
     stages.run_navigation(tmp_path / "random", table=TABLE, ga=ga)
     gen0 = np.load(tmp_path / "random/navigation/populations/pop0_gen0000.npz")
