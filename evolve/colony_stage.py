@@ -49,6 +49,7 @@ from evolve.stages import (
     envelope_figure9,
     figure9_both,
     figure9_summary,
+    started_from,
     write_summary,
 )
 from evolve.starts import CAPACITY_REHEARSALS, colony_capacity, colony_starts
@@ -158,9 +159,7 @@ def colony_stage(
     from evolve.coevolution import role_stage
 
     team, role = beside_team(partners, colony.robots, robot)
-    if first is not None:
-        stage = dataclasses.replace(stage, initial=_check_section(first, "first"))
-    return role_stage(stage, team, role)
+    return role_stage(started_from(stage, first), team, role)
 
 
 def beside_team(

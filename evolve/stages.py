@@ -216,6 +216,14 @@ def _check_section(section: np.ndarray, name: str = "navigation") -> np.ndarray:
     return bits.astype(np.uint8)
 
 
+def started_from(stage: Stage, first: np.ndarray | None) -> Stage:
+    """``stage`` with every individual of generation 0 carrying the (8, 30) section ``first``
+    (``Stage.initial``, recorded as ``initial_section``); ``stage`` itself when None."""
+    if first is None:
+        return stage
+    return dataclasses.replace(stage, initial=_check_section(first, "first"))
+
+
 def _gene_text(section: np.ndarray) -> list[str]:
     """A section's genes as strings of bits (a settings document's record of it)."""
     return ["".join(map(str, g)) for g in section.tolist()]
@@ -418,9 +426,7 @@ def run_navigation(
     run = StageRun(**options)
     ga = navigation_ga_settings() if ga is None else ga
     given, world = world, navigation.world(world)
-    stage = navigation_stage(world, navigation, ga.generations, run.envelope)
-    if first is not None:
-        stage = dataclasses.replace(stage, initial=_check_section(first, "first"))
+    stage = started_from(navigation_stage(world, navigation, ga.generations, run.envelope), first)
     folder = Path(out) / "navigation"
     with _stage_folder(stage, folder, table, ga, world, run.resume, run.force) as doc:
         t0 = time.perf_counter()
@@ -651,9 +657,7 @@ def run_coverage(
     """
     out = Path(out)
     run = StageRun(**options)
-    stage = coverage_stage(world, navigation, run.envelope)
-    if first is not None:
-        stage = dataclasses.replace(stage, initial=_check_section(first, "first"))
+    stage = started_from(coverage_stage(world, navigation, run.envelope), first)
     with _stage_folder(stage, out / "coverage", table, ga, world, run.resume, run.force) as doc:
         return _coverage(stage, out, doc, table, ga, world, run)
 
