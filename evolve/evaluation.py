@@ -17,7 +17,7 @@ from evolve.codec import FULL_GENES, SECTION_GENES, check_bits, decode
 from evolve.envelope import NONE, ROBOT_RADIUS, Envelope
 from evolve.geometry import pack_world
 from evolve.interpreter import LIVE_ENDS, MODES
-from evolve.settings import ColonySettings, WorldSettings
+from evolve.settings import ALIVE_FITNESSES, DOCK_FITNESSES, ColonySettings, WorldSettings
 from evolve.table import validate_table
 from evolve.variation import KernelDraws, Variation
 
@@ -192,19 +192,18 @@ def colony_run_fitness(ev: ColonyEvaluation, colony: ColonySettings, max_steps: 
     (``ColonySettings.fitness``); ``max_steps``: each robot's gait-step limit N of the runs.
     Equal to ``evolve.interpreter.colony_fitness`` run by run, bit for bit (the same float
     operations in the same order)."""
-    squares = np.asarray(ev.squares, dtype=np.float64)
+    fitness = np.asarray(ev.squares, dtype=np.float64)
     n = ev.end.shape[2]
-    if colony.fitness == "alive":
-        live = ev.live.sum(axis=2)
-        return squares + float(colony.alive_weight) * live / n
     if colony.fitness == "per_step":
         steps = ev.steps.sum(axis=2)
-        scaled = squares * float(n * max_steps) / np.maximum(steps, 1)
+        scaled = fitness * float(n * max_steps) / np.maximum(steps, 1)
         return np.where(steps == 0, 0.0, scaled)
-    if colony.fitness == "docks":
+    if colony.fitness in ALIVE_FITNESSES:
+        fitness = fitness + float(colony.alive_weight) * ev.live.sum(axis=2) / n
+    if colony.fitness in DOCK_FITNESSES:
         docks = np.minimum(ev.docks, colony.dock_cap).sum(axis=2)
-        return squares + float(colony.dock_weight) * docks / n
-    return squares
+        fitness = fitness + float(colony.dock_weight) * docks / n
+    return fitness
 
 
 def _check_partners(partners: np.ndarray, bits: np.ndarray, robots: int, role: int) -> np.ndarray:

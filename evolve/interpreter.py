@@ -61,7 +61,7 @@ from evolve.codec import (
     next_pc,
     sensor_test_positive,
 )
-from evolve.settings import ColonySettings, WorldSettings
+from evolve.settings import ALIVE_FITNESSES, DOCK_FITNESSES, ColonySettings, WorldSettings
 from evolve.world import ColonyWorld, RobotView, World
 
 END_STEP_LIMIT, END_KILL_ZONE, END_POWER_EMPTY, END_BRANCH_LIMIT, END_DOCKED = 0, 1, 2, 3, 4
@@ -449,17 +449,17 @@ def colony_fitness(result: ColonyResult, colony: ColonySettings, max_steps: int)
     """One colony run's fitness under ``colony.fitness`` (``ColonySettings.fitness``), in
     squares; ``max_steps``: each robot's gait-step limit N of the run (``"per_step"``'s scale
     R × N). The reference for ``evolve.evaluation.colony_run_fitness``, bit for bit."""
-    squares = float(result.squares)
+    fitness = float(result.squares)
     n = len(result.robots)
-    if colony.fitness == "alive":
-        return squares + float(colony.alive_weight) * result.live / n
     if colony.fitness == "per_step":
         steps = result.steps
-        return 0.0 if steps == 0 else squares * float(n * max_steps) / steps
-    if colony.fitness == "docks":
+        return 0.0 if steps == 0 else fitness * float(n * max_steps) / steps
+    if colony.fitness in ALIVE_FITNESSES:
+        fitness = fitness + float(colony.alive_weight) * result.live / n
+    if colony.fitness in DOCK_FITNESSES:
         docks = sum(min(r.docks, colony.dock_cap) for r in result.robots)
-        return squares + float(colony.dock_weight) * docks / n
-    return squares
+        fitness = fitness + float(colony.dock_weight) * docks / n
+    return fitness
 
 
 def run_colony(

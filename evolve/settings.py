@@ -28,8 +28,15 @@ BLOCKING_RULES = ("cancel", "slide")
 """``ColonySettings.blocking`` values; a rule's index is its code in the numba kernel
 (``ColonySettings.blocking_code``)."""
 
-COLONY_FITNESSES = ("squares", "alive", "per_step", "docks")
+COLONY_FITNESSES = ("squares", "alive", "per_step", "docks", "alive_docks")
 """``ColonySettings.fitness`` values: what one colony run scores in the colony stage."""
+
+ALIVE_FITNESSES = ("alive", "alive_docks")
+"""The ``ColonySettings.fitness`` values that add the live robots' term (``alive_weight``)."""
+
+DOCK_FITNESSES = ("docks", "alive_docks")
+"""The ``ColonySettings.fitness`` values that add the capped docks' term (``dock_weight``,
+``dock_cap``)."""
 
 COLONY_SECTIONS = ("shared", "team", "navigation", "beside")
 """``ColonySettings.sections`` values: one coverage section for every robot, one per robot
@@ -229,20 +236,25 @@ class ColonySettings:
     - ``"docks"``: the colony's squares + ``dock_weight`` × Σ_r min(D_r, ``dock_cap``) / R,
       D_r the times robot r docked in the run: each dock up to the cap pays ``dock_weight``
       / R squares, so a colony whose every robot docks ``dock_cap`` times gains
-      ``dock_weight`` × ``dock_cap``."""
+      ``dock_weight`` × ``dock_cap``.
+    - ``"alive_docks"``: both terms, ``"alive"``'s then ``"docks"``'s: every robot is paid for
+      being live at the end and for each of its first ``dock_cap`` docks, so a colony cannot
+      score its lives by a robot that parks and never docks, nor its docks by a robot that
+      docks and dies (docs/colony.md "Every robot paid for its life and its docks")."""
     alive_weight: float = 8.0
-    """``fitness = "alive"``: what keeping every robot live to the end adds to a run's
-    fitness, in squares (the units of the ``"squares"`` fitness, of 100): 8 = as much as 8
-    more squares; each live robot adds ``alive_weight`` / R [chosen]."""
+    """``fitness = "alive"`` or ``"alive_docks"``: what keeping every robot live to the end
+    adds to a run's fitness, in squares (the units of the ``"squares"`` fitness, of 100): 8 =
+    as much as 8 more squares; each live robot adds ``alive_weight`` / R [chosen]."""
     dock_weight: float = 4.0
-    """``fitness = "docks"``: what one dock of one robot is worth, in squares, times R (each
-    dock adds ``dock_weight`` / R to a run's fitness); 4 with ``dock_cap`` 2: a colony whose
-    every robot docks twice gains 8 squares, as ``alive_weight`` 8 pays for every robot live
-    [chosen; docs/colony.md "Learning to dock"]."""
+    """``fitness = "docks"`` or ``"alive_docks"``: what one dock of one robot is worth, in
+    squares, times R (each dock adds ``dock_weight`` / R to a run's fitness); 4 with
+    ``dock_cap`` 2: a colony whose every robot docks twice gains 8 squares, as
+    ``alive_weight`` 8 pays for every robot live [chosen; docs/colony.md "Learning to
+    dock"]."""
     dock_cap: int = 2
-    """``fitness = "docks"``: the docks per robot and run that count; more earn nothing, so a
-    colony is not paid for robots that shuttle to the station instead of covering. 2 = issue
-    17's goal of ≥ 2 docks per robot [chosen]."""
+    """``fitness = "docks"`` or ``"alive_docks"``: the docks per robot and run that count;
+    more earn nothing, so a colony is not paid for robots that shuttle to the station instead
+    of covering. 2 = issue 17's goal of ≥ 2 docks per robot [chosen]."""
     start_power_spread: float = 0.0
     """The colony's start layout for power, volts [chosen; issue 17, docs/colony.md "Start
     layout: staggered start power"]: robot i of R starts with its store at
@@ -353,19 +365,20 @@ class ColonySettings:
     def to_dict(self) -> dict[str, Any]:
         """Every field, but ``blocking`` only when it is not ``"cancel"``, ``fitness`` only when
         it is not ``"squares"``, ``sections`` only when it is not ``"shared"``, ``alive_weight``
-        only with ``fitness = "alive"``, ``dock_weight``, ``dock_cap`` only with ``fitness =
-        "docks"`` (the fitnesses that read them), ``start_power_spread`` only when it is not
-        0, ``robots_seen`` only when False and ``contact_yaw_deg`` only when not 0: the record
-        of a colony made before these fields existed (``settings.json``, checked on resume) is
-        unchanged, so such a run folder still resumes."""
+        only with ``fitness = "alive"`` or ``"alive_docks"``, ``dock_weight``, ``dock_cap`` only
+        with ``fitness = "docks"`` or ``"alive_docks"`` (the fitnesses that read them),
+        ``start_power_spread`` only when it is not 0, ``robots_seen`` only when False and
+        ``contact_yaw_deg`` only when not 0: the record of a colony made before these fields
+        existed (``settings.json``, checked on resume) is unchanged, so such a run folder still
+        resumes."""
         d = dataclasses.asdict(self)
         if self.blocking == "cancel":
             del d["blocking"]
         if self.fitness == "squares":
             del d["fitness"]
-        if self.fitness != "alive":
+        if self.fitness not in ALIVE_FITNESSES:
             del d["alive_weight"]
-        if self.fitness != "docks":
+        if self.fitness not in DOCK_FITNESSES:
             del d["dock_weight"], d["dock_cap"]
         if self.start_power_spread == 0.0:
             del d["start_power_spread"]
@@ -596,9 +609,11 @@ def settings_from_record(
 
 
 __all__ = [
+    "ALIVE_FITNESSES",
     "BLOCKING_RULES",
     "COLONY_FITNESSES",
     "COLONY_SECTIONS",
+    "DOCK_FITNESSES",
     "SettingsError",
     "ColonySettings",
     "GASettings",

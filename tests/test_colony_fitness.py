@@ -1,7 +1,7 @@
 """The colony's run fitness (``ColonySettings.fitness``, issue 17 "learning to share"):
 ``"squares"`` (SPEC §7), ``"alive"`` (+ ``alive_weight`` × live robots / R), ``"per_step"``
-(squares × R·N / gait steps) and ``"docks"`` (+ ``dock_weight`` × Σ min(docks, ``dock_cap``)
-/ R). Hand-worked colonies in the interpreter and the kernel, the
+(squares × R·N / gait steps), ``"docks"`` (+ ``dock_weight`` × Σ min(docks, ``dock_cap``)
+/ R) and ``"alive_docks"`` (both terms). Hand-worked colonies in the interpreter and the kernel, the
 kernel against the interpreter on random colonies for every option, ``"squares"`` against the
 fitness before the setting existed, one robot, the setting's validation and record, resume
 of a run folder written before the field existed, and the CLI options."""
@@ -58,6 +58,7 @@ VARIANTS = (
     ("alive", {"alive_weight": 2.5}),
     ("docks", {"dock_weight": 2.5, "dock_cap": 1}),
     ("docks", {"dock_weight": 7.0, "dock_cap": 3}),
+    ("alive_docks", {"alive_weight": 16.0, "dock_weight": 12.0, "dock_cap": 1}),
 )
 """(fitness, other ``ColonySettings`` fields): every option at its defaults, and other weights
 and caps."""
@@ -95,7 +96,8 @@ def test_one_robot_killed_one_at_its_step_limit():
     ]  # fmt: skip
     assert (res.squares, res.inner_squares, res.live, res.steps) == (3, 2, 1, 10)
     # squares 3; alive 3 + 8 · 1/2 = 7; per step 3 · (2 · 6) / 10 = 3.6
-    assert_values(values, {"squares": 3.0, "alive": 7.0, "per_step": 3.0 * 12 / 10, "docks": 3.0})
+    want = {"squares": 3.0, "alive": 7.0, "per_step": 3.0 * 12 / 10, "docks": 3.0}
+    assert_values(values, {**want, "alive_docks": 7.0})
     w = ColonySettings(robots=2, fitness="alive", alive_weight=3.0)
     assert colony_fitness(res, w, 6) == 3.0 + 1.5
 
@@ -106,7 +108,8 @@ def test_the_colony_step_limit_leaves_every_robot_live():
     assert [r.end for r in res.robots] == [END_STEP_LIMIT] * 2
     assert (res.squares, res.live, res.steps) == (2, 2, 4)
     # alive 2 + 8 · 2/2 = 10; per step 2 · 12 / 4 = 6
-    assert_values(values, {"squares": 2.0, "alive": 10.0, "per_step": 6.0, "docks": 2.0})
+    assert_values(values, {"squares": 2.0, "alive": 10.0, "per_step": 6.0, "docks": 2.0,
+                           "alive_docks": 10.0})  # fmt: skip
 
 
 def test_a_robot_charging_at_the_end_is_live():
@@ -120,8 +123,8 @@ def test_a_robot_charging_at_the_end_is_live():
         (1, 1, END_STEP_LIMIT), (5, 0, END_STEP_LIMIT)
     ]  # fmt: skip
     assert (res.squares, res.live, res.steps) == (1, 2, 6)
-    # alive 1 + 8 = 9; per step 1 · (2 · 20) / 6; docks 1 + 4 · 1/2 = 3
-    want = {"squares": 1.0, "alive": 9.0, "per_step": 40.0 / 6, "docks": 3.0}
+    # alive 1 + 8 = 9; per step 1 · (2 · 20) / 6; docks 1 + 4 · 1/2 = 3; both 1 + 8 + 2 = 11
+    want = {"squares": 1.0, "alive": 9.0, "per_step": 40.0 / 6, "docks": 3.0, "alive_docks": 11.0}
     assert_values(values, want)
     # Without the limit it charges, backs up 4 cycles (gait 15 stands still here), walks
     # east into the kill zone (x 480 after 2 more steps); robot 1 takes its 20 steps west:
@@ -131,7 +134,8 @@ def test_a_robot_charging_at_the_end_is_live():
         (7, 1, END_KILL_ZONE), (20, 0, END_STEP_LIMIT)
     ]  # fmt: skip
     assert (res.squares, res.live, res.steps) == (4, 1, 27)
-    want = {"squares": 4.0, "alive": 4.0 + 4.0, "per_step": 4.0 * 40 / 27, "docks": 4.0 + 2.0}
+    want = {"squares": 4.0, "alive": 4.0 + 4.0, "per_step": 4.0 * 40 / 27, "docks": 4.0 + 2.0,
+            "alive_docks": 4.0 + 4.0 + 2.0}  # fmt: skip
     assert_values(values, want)
 
 
@@ -141,11 +145,13 @@ def test_no_step_taken_scores_zero_per_step():
     res, values = both(looping, TWO, ColonySettings(robots=2), max_steps=6)
     assert [r.end for r in res.robots] == [END_BRANCH_LIMIT] * 2
     assert (res.squares, res.live, res.steps) == (0, 0, 0)
-    assert_values(values, {"squares": 0.0, "alive": 0.0, "per_step": 0.0, "docks": 0.0})
+    assert_values(values, {"squares": 0.0, "alive": 0.0, "per_step": 0.0, "docks": 0.0,
+                           "alive_docks": 0.0})  # fmt: skip
     # max_steps 0: no step allowed, every robot ends at its step limit, live
     res, values = both(FORWARD, TWO, ColonySettings(robots=2), max_steps=0)
     assert (res.squares, res.live, res.steps) == (0, 2, 0)
-    assert_values(values, {"squares": 0.0, "alive": 8.0, "per_step": 0.0, "docks": 0.0})
+    assert_values(values, {"squares": 0.0, "alive": 8.0, "per_step": 0.0, "docks": 0.0,
+                           "alive_docks": 8.0})  # fmt: skip
 
 
 BACK = STEP.copy()
@@ -171,8 +177,10 @@ def test_docks_count_each_robot_up_to_the_cap():
         (11, 1, END_KILL_ZONE), (30, 3, END_STEP_LIMIT)
     ]  # fmt: skip
     assert (res.squares, res.live, res.station_waits) == (5, 1, 2)
-    # docks (cap 2): 5 + 4 · (min(1, 2) + min(3, 2)) / 2 = 5 + 4 · 3/2 = 11; alive 5 + 8 · 1/2
-    assert_values(values, {"squares": 5.0, "alive": 9.0, "per_step": 5.0 * 60 / 41, "docks": 11.0})
+    # docks (cap 2): 5 + 4 · (min(1, 2) + min(3, 2)) / 2 = 5 + 4 · 3/2 = 11; alive 5 + 8 · 1/2;
+    # both 5 + 4 + 6
+    assert_values(values, {"squares": 5.0, "alive": 9.0, "per_step": 5.0 * 60 / 41, "docks": 11.0,
+                           "alive_docks": 15.0})  # fmt: skip
     for cap, weight, want in ((3, 4.0, 5.0 + 4.0 * 4 / 2), (1, 3.0, 5.0 + 3.0 * 2 / 2),
                               (2, 0.0, 5.0), (5, 0.5, 5.0 + 0.5 * 4 / 2)):  # fmt: skip
         c = ColonySettings(robots=2, fitness="docks", dock_weight=weight, dock_cap=cap)
@@ -180,6 +188,40 @@ def test_docks_count_each_robot_up_to_the_cap():
                              max_steps=30, colony=c, settings=LOW, start_power=3.95)  # fmt: skip
         assert colony_fitness(res, c, 30) == want
         assert colony_run_fitness(ev, c, 30)[0, 0] == want
+    # alive_docks at issue 17's weights: 5 + 16 · 1/2 + 12 · (1 + 2)/2 = 31; with cap 1 robot
+    # 1's extra docks earn nothing: 5 + 8 + 12 · 2/2 = 25
+    for cap, want in ((2, 31.0), (1, 25.0)):
+        c = ColonySettings(robots=2, fitness="alive_docks", alive_weight=16.0, dock_weight=12.0,
+                           dock_cap=cap)  # fmt: skip
+        ev = evaluate_colony(DOCKER[None], starts[None], table=BACK, mode="coverage",
+                             max_steps=30, colony=c, settings=LOW, start_power=3.95)  # fmt: skip
+        assert colony_fitness(res, c, 30) == want
+        assert colony_run_fitness(ev, c, 30)[0, 0] == want
+
+
+def test_alive_docks_pays_neither_a_parked_robot_nor_a_dead_docker_in_full():
+    """The two ways a colony scored its lives or its docks with one robot taking no part
+    (docs/colony.md): under ``"alive"`` a robot that parks and never docks is paid in full,
+    under ``"docks"`` one that docks twice and dies; ``"alive_docks"`` pays each only its
+    half. Robot 0 stands still to its step limit (live, no dock); robot 1 is DOCKER of
+    ``test_docks_count_each_robot_up_to_the_cap``'s robot 1, from (350, 270)."""
+    parked = chrom(*[STILL] * 16)
+    starts = np.array([[200.0, 100.0, 0.0], [350.0, 270.0, 90.0]])
+    colony = ColonySettings(robots=2)
+    world = TableColony(BACK, starts, LOW, colony)
+    team = np.stack([parked, DOCKER])
+    res = run_colony(team, world, colony=colony, max_steps=30, settings=LOW, start_power=3.95)
+    r0, r1 = res.robots
+    # (200, 100) lies 35 units from the nearest square centre (175, 75): robot 0 reaches none
+    assert (r0.docks, r0.end, r0.squares) == (0, END_STEP_LIMIT, 0)
+    assert r1.docks >= 2 and r1.end == END_STEP_LIMIT
+    w = {"alive_weight": 16.0, "dock_weight": 12.0}
+    fit = {f: colony_fitness(res, ColonySettings(robots=2, fitness=f, **w), 30) - res.squares
+           for f in ("alive", "docks", "alive_docks")}  # fmt: skip
+    # alive: both live, 16; docks: robot 0 none, robot 1 capped at 2: 12 · 2/2 = 12
+    assert fit == {"alive": 16.0, "docks": 12.0, "alive_docks": 28.0}
+    # the same with robot 0 as a docker too: every term paid in full, 16 + 12 · 4/2 = 40
+    assert fit["alive_docks"] < 16.0 + 12.0 * 4 / 2
 
 
 # --------------------------------------------------------------------------- kernel = interpreter
@@ -285,7 +327,7 @@ def test_one_robot_with_squares_is_the_lone_robot():
 
 
 def test_the_setting_is_validated():
-    allowed = "'squares', 'alive', 'per_step', 'docks'"
+    allowed = "'squares', 'alive', 'per_step', 'docks', 'alive_docks'"
     with pytest.raises(SettingsError, match=f"fitness must be one of {allowed}, got 'coverage'"):
         ColonySettings(fitness="coverage")
     for bad in (-1.0, float("nan"), float("inf"), "8", True):
@@ -321,6 +363,9 @@ def test_the_record_names_fitness_only_when_not_squares():
     assert docks["ColonySettings"]["fitness"] == "docks"
     assert (docks["ColonySettings"]["dock_weight"], docks["ColonySettings"]["dock_cap"]) == (6.0, 2)
     assert "alive_weight" not in docks["ColonySettings"]
+    both = json.loads(settings_json(ColonySettings(fitness="alive_docks", dock_cap=3)))
+    want = {"fitness": "alive_docks", "alive_weight": 8.0, "dock_weight": 4.0, "dock_cap": 3}
+    assert want.items() <= both["ColonySettings"].items()
 
 
 TINY = GASettings(populations=1, population_size=10, generations=6, test_starts=4, seed=2)
@@ -390,11 +435,17 @@ def test_the_cli_option(tmp_path, capsys):
     assert main(["colony", *tiny, *args, "--out", str(docks)]) == 0
     record = json.loads((docks / "colony/summary.json").read_text())["settings"]["ColonySettings"]
     assert (record["fitness"], record["dock_weight"], record["dock_cap"]) == ("docks", 6.0, 3)
+    both = tmp_path / "alive_docks"
+    args = ["--colony-fitness", "alive_docks", "--alive-weight", "16", "--dock-weight", "12"]
+    assert main(["colony", *tiny, *args, "--out", str(both)]) == 0
+    record = json.loads((both / "colony/summary.json").read_text())["settings"]["ColonySettings"]
+    assert (record["alive_weight"], record["dock_weight"], record["dock_cap"]) == (16.0, 12.0, 2)
     refused = {
         ("--colony-fitness", "alive", "--dock-weight", "4"): "--dock-weight is an option of "
-        "--colony-fitness docks",
-        ("--dock-cap", "2"): "--dock-cap is an option of --colony-fitness docks",
-        ("--alive-weight", "8"): "--alive-weight is an option of --colony-fitness alive",
+        "--colony-fitness docks or alive_docks",
+        ("--dock-cap", "2"): "--dock-cap is an option of --colony-fitness docks or alive_docks",
+        ("--colony-fitness", "docks", "--alive-weight", "8"): "--alive-weight is an option of "
+        "--colony-fitness alive or alive_docks",
         ("--colony-fitness", "docks", "--dock-weight", "nan"): "--dock-weight must be a finite "
         "number ≥ 0",
         ("--colony-fitness", "alive", "--alive-weight", "-1"): "--alive-weight must be a finite "

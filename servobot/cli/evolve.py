@@ -11,7 +11,7 @@ A thin layer over ``evolve.stages`` and ``evolve.colony_stage``::
                                 --executor serial|process|ray|ray:ADDRESS --workers N]
     servobot evolve coverage   [... --generations 512 ... --navigation FILE --first FILE]
     servobot evolve colony     [... as coverage ... --robots 3 --blocking cancel|slide
-                                --colony-fitness squares|alive|per_step|docks
+                                --colony-fitness squares|alive|per_step|docks|alive_docks
                                 --alive-weight 8 --dock-weight 4 --dock-cap 2
                                 --start-power-spread 0 --robots-unseen --contact-yaw 0
                                 --sections shared|team|navigation|beside --team-from DIR
@@ -54,9 +54,11 @@ import numpy as np
 
 from evolve.envelope import NONE
 from evolve.settings import (
+    ALIVE_FITNESSES,
     BLOCKING_RULES,
     COLONY_FITNESSES,
     COLONY_SECTIONS,
+    DOCK_FITNESSES,
     GASettings,
     WorldSettings,
     coverage_ga_settings,
@@ -219,28 +221,29 @@ def build_parser() -> argparse.ArgumentParser:
         help="colony only: what a colony run scores: its squares (default), its squares + "
         "8 × the fraction of robots live at the end ('alive'), or its squares per robot step "
         "scaled by R × 600 ('per_step'), or its squares + 4 × the docks per robot, each "
-        "robot's capped at 2 ('docks'); ColonySettings.fitness, docs/colony.md",
+        "robot's capped at 2 ('docks'), or both terms ('alive_docks'); "
+        "ColonySettings.fitness, docs/colony.md",
     )
     p.add_argument(
         "--alive-weight",
         type=float,
         default=None,
-        help="colony, --colony-fitness alive: squares that every robot live at the end adds "
-        "(8; ColonySettings.alive_weight)",
+        help="colony, --colony-fitness alive or alive_docks: squares that every robot live at "
+        "the end adds (8; ColonySettings.alive_weight)",
     )
     p.add_argument(
         "--dock-weight",
         type=float,
         default=None,
-        help="colony, --colony-fitness docks: squares per dock per robot (4; "
+        help="colony, --colony-fitness docks or alive_docks: squares per dock per robot (4; "
         "ColonySettings.dock_weight)",
     )
     p.add_argument(
         "--dock-cap",
         type=int,
         default=None,
-        help="colony, --colony-fitness docks: docks per robot and run that count (2; "
-        "ColonySettings.dock_cap)",
+        help="colony, --colony-fitness docks or alive_docks: docks per robot and run that "
+        "count (2; ColonySettings.dock_cap)",
     )
     p.add_argument(
         "--nav-start-power",
@@ -428,12 +431,12 @@ def _colony(args: argparse.Namespace) -> Any:
         kw["fitness"] = args.colony_fitness
     if args.sections is not None:
         kw["sections"] = args.sections
-    for flag, field, fitness in FITNESS_TERMS:
+    for flag, field, fitnesses in FITNESS_TERMS:
         value = getattr(args, field)
         if value is None:
             continue
-        if args.colony_fitness != fitness:
-            raise CliError(f"{flag} is an option of --colony-fitness {fitness}")
+        if args.colony_fitness not in fitnesses:
+            raise CliError(f"{flag} is an option of --colony-fitness {' or '.join(fitnesses)}")
         if field == "dock_cap":
             check_int(value, flag, lo=1)
         else:
@@ -453,11 +456,11 @@ def _colony(args: argparse.Namespace) -> Any:
 
 
 FITNESS_TERMS = (
-    ("--alive-weight", "alive_weight", "alive"),
-    ("--dock-weight", "dock_weight", "docks"),
-    ("--dock-cap", "dock_cap", "docks"),
+    ("--alive-weight", "alive_weight", ALIVE_FITNESSES),
+    ("--dock-weight", "dock_weight", DOCK_FITNESSES),
+    ("--dock-cap", "dock_cap", DOCK_FITNESSES),
 )
-"""(option, ``ColonySettings`` field, the ``--colony-fitness`` that reads it)."""
+"""(option, ``ColonySettings`` field, the ``--colony-fitness`` values that read it)."""
 
 
 STAGE_OPTIONS = (

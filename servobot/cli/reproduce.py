@@ -75,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=COLONY_FITNESSES,
         default=None,
         help="with --robots R: what a colony run scores, as servobot evolve colony's "
-        "(squares, default; alive; per_step; docks)",
+        "(squares, default; alive; per_step; docks; alive_docks)",
     )
     p.add_argument(
         "--start-power-spread",

@@ -121,7 +121,8 @@ class ReproduceSettings:
     table side runs it (physics blocks by contacts either way)."""
     colony_fitness: str = ColonySettings().fitness
     """What a colony run scores in the colony stage (``ColonySettings.fitness``, its weights at
-    their defaults): ``squares`` (SPEC §7, default), ``alive``, ``per_step`` or ``docks``."""
+    their defaults): ``squares`` (SPEC §7, default), ``alive``, ``per_step``, ``docks`` or
+    ``alive_docks``."""
     colony_start_power_spread: float = ColonySettings().start_power_spread
     """Volts between the robots' start powers (``ColonySettings.start_power_spread``; 0,
     default: every robot on 4.0 V), in the colony stage and both worlds of its validation."""
