@@ -38,7 +38,8 @@ def test_each_file_is_a_section_or_a_whole_chromosome(path):
      ("colony_s1_liver.txt", "nav_s1_station_colony.txt"),
      ("colony_s1_coverer.txt", "nav_s1_station_colony.txt"),
      ("colony_s1_liver_beside.txt", "nav_s1_station_colony.txt"),
-     ("colony_s1_parker.txt", "nav_s1_station_colony.txt")],
+     ("colony_s1_parker.txt", "nav_s1_station_colony.txt"),
+     ("colony_s1_liver_alive_docks.txt", "nav_s1_station_colony.txt")],
 )  # fmt: skip
 def test_coverage_finalists_carry_their_navigation_section(coverage, navigation):
     full = read_chromosome(FOLDER / coverage)
