@@ -199,11 +199,11 @@ def test_docks_count_each_robot_up_to_the_cap():
         assert colony_run_fitness(ev, c, 30)[0, 0] == want
 
 
-def test_alive_docks_pays_neither_a_parked_robot_nor_a_dead_docker_in_full():
-    """The two ways a colony scored its lives or its docks with one robot taking no part
-    (docs/colony.md): under ``"alive"`` a robot that parks and never docks is paid in full,
-    under ``"docks"`` one that docks twice and dies; ``"alive_docks"`` pays each only its
-    half. Robot 0 stands still to its step limit (live, no dock); robot 1 is DOCKER of
+def test_alive_docks_does_not_pay_a_parked_robot_in_full():
+    """A robot that parks and never docks (docs/colony.md): ``"alive"`` pays its life in full,
+    ``"alive_docks"`` withholds its docks' pay (a robot that docks and dies keeps its docks'
+    pay and loses its life's: ``test_a_robot_charging_at_the_end_is_live``). Robot 0 stands
+    still to its step limit (live, no dock); robot 1 is DOCKER of
     ``test_docks_count_each_robot_up_to_the_cap``'s robot 1, from (350, 270)."""
     parked = chrom(*[STILL] * 16)
     starts = np.array([[200.0, 100.0, 0.0], [350.0, 270.0, 90.0]])
