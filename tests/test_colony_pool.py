@@ -53,11 +53,24 @@ def test_pool_counts_runs_whose_physics_finished() -> None:
         assert s["inner_pct"] == pytest.approx(100 * (32 + 64 + 16) / 64 / 3)
         assert s["docks_per_robot"] == pytest.approx((3 + 1 + 0 + 2 + 2 + 4) / 6)
         assert s["live_per_run"] == pytest.approx((1 + 0 + 2) / 3)  # step limit is live
+        assert s["live_by_robot"] == pytest.approx([2 / 3, 1 / 3])
+        assert s["failed_handoffs_pct"] == pytest.approx(100 * 3 / (12 + 3))  # 3 empty, 12 docks
         assert s["ends"] == {"step limit": 3, "power empty": 3}
         assert s["ends_at_station"] == {"power empty": 2, "step limit": 1}
     assert got["gap_inner_pp"] == 0.0
     md = pool_markdown(got)
-    assert "| physics | 3 | 58.3 | 2.00 | 1.00 | 50 % (2 of 3) | 50 % (1 of 3) |" in md
+    assert "| physics | 3 | 58.3 | 2.00 | 20.0 | 1.00 | 0.67 / 0.33 | 50 % (2 of 3) |" in md
+
+
+def test_pool_gives_each_robot_index_its_own_lives() -> None:
+    """Teams of different sizes pool robot i over the runs that have one; a colony that never
+    docks and never empties has no failed hand-off (not a division by zero)."""
+    lone = report([run(8, [robot(*STEP_LIMIT, FIELD, 0)]), run(8, [robot(*STEP_LIMIT, FIELD, 0)])])
+    pair = report([run(8, [robot(*EMPTY, FIELD, 0), robot(*STEP_LIMIT, FIELD, 0)])])
+    got = pool([lone, pair])["physics"]
+    assert got["live_by_robot"] == pytest.approx([2 / 3, 1.0])
+    assert got["failed_handoffs_pct"] == 100.0  # one hand-off, never docked
+    assert pool([lone])["physics"]["failed_handoffs_pct"] == 0.0
 
 
 def test_cli_reads_a_folder_of_populations(tmp_path: Path, capsys) -> None:

@@ -5,9 +5,11 @@ Each DIR is a colony validation (``servobot validate --robots R``: ``DIR/report.
 folder of them (``DIR/pop{k}/report.json``, as the reproduction's ``colony_validation``). The
 runs of every report found are pooled (each finalist's runs weigh alike when every finalist
 ran the same starts) and summarised per world over the runs whose physics finished: colony
-inner %, docks per robot, robots live at the end per run, and how the robots ended, in all
-and at the station (``colony_report.ended_at_station``, recomputed from the final poses, so
-reports written before that count existed pool too).
+inner %, docks per robot, robots live at the end per run and each robot's (by its index in the
+team), the hand-offs that failed (a robot whose store empties before it docks, % of all
+hand-offs: issue 17's lives are lost to these and to the kill zone), and how the robots ended,
+in all and at the station (``colony_report.ended_at_station``, recomputed from the final
+poses, so reports written before that count existed pool too).
 
 ``--replay`` runs every report's colony starts again in the table world (the report's
 chromosome, gait table, ``WorldSettings`` and ``ColonySettings`` with the given fields
@@ -24,7 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections import Counter
+from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +34,7 @@ import numpy as np
 
 from evolve.codec import parse_chromosome
 from evolve.envelope import NONE, Envelope, load_envelope
-from evolve.interpreter import LIVE_ENDS, run_colony
+from evolve.interpreter import END_NAMES, END_POWER_EMPTY, LIVE_ENDS, run_colony
 from evolve.settings import ColonySettings, WorldSettings, settings_from_record
 from evolve.table import GaitTable, load_table
 from evolve.world import TableColony
@@ -111,12 +113,16 @@ def pool(
 ) -> dict[str, Any]:
     """Per world, over the runs of every colony report whose physics finished: ``runs``,
     ``inner_pct`` (colony inner squares, % of the inner squares), ``docks_per_robot``,
-    ``live_per_run``, ``robots``, ``ends`` and ``ends_at_station`` (robots by end name);
+    ``live_per_run``, ``live_by_robot`` (robot i's fraction of runs live at the end, over the
+    runs that have a robot i), ``failed_handoffs_pct`` (robots whose store emptied, % of those
+    plus all docks: a store empties only in navigation mode, so each such robot is a hand-off
+    that never docked), ``robots``, ``ends`` and ``ends_at_station`` (robots by end name);
     ``gap_inner_pp`` = table − physics. ``table_reports`` (replays of ``reports``) give the
     table world's runs in their place."""
     out: dict[str, Any] = {}
     for w in WORLDS:
         inner, docks, live = [], [], []
+        by_robot: defaultdict[int, list[bool]] = defaultdict(list)
         ends: Counter[str] = Counter()
         at_station: Counter[str] = Counter()
         for rep in table_reports if w == "table" and table_reports is not None else reports:
@@ -128,16 +134,20 @@ def pool(
                 rec = run[w]
                 inner.append(100.0 * rec["colony"]["inner_squares"] / n_inner)
                 live.append(sum(b["end"]["code"] in LIVE_ENDS for b in rec["robots"]))
-                for b in rec["robots"]:
+                for i, b in enumerate(rec["robots"]):
+                    by_robot[i].append(b["end"]["code"] in LIVE_ENDS)
                     docks.append(b["docks"])
                     ends[b["end"]["name"]] += 1
                     if ended_at_station(b, dock):
                         at_station[b["end"]["name"]] += 1
         if not inner:
             raise InputError("no colony run whose physics finished in the reports given")
+        empty = ends[END_NAMES[END_POWER_EMPTY]]
         out[w] = {
             "runs": len(inner), "inner_pct": float(np.mean(inner)),
             "docks_per_robot": float(np.mean(docks)), "live_per_run": float(np.mean(live)),
+            "live_by_robot": [float(np.mean(by_robot[i])) for i in sorted(by_robot)],
+            "failed_handoffs_pct": 100.0 * empty / max(sum(docks) + empty, 1),
             "robots": len(docks), "ends": dict(ends), "ends_at_station": dict(at_station),
         }  # fmt: skip
     out["gap_inner_pp"] = out["table"]["inner_pct"] - out["physics"]["inner_pct"]
@@ -153,11 +163,14 @@ def pool_markdown(pooled: dict[str, Any]) -> str:
         cells = [f"{100 * s['ends'].get(e, 0) / s['robots']:.0f} % "
                  f"({s['ends_at_station'].get(e, 0)} of {s['ends'].get(e, 0)})"
                  for e in names]  # fmt: skip
+        by_robot = " / ".join(f"{v:.2f}" for v in s["live_by_robot"])
         rows.append(f"| {w} | {s['runs']} | {s['inner_pct']:.1f} | {s['docks_per_robot']:.2f} | "
-                    f"{s['live_per_run']:.2f} | {' | '.join(cells)} |")  # fmt: skip
-    head = ("| world | runs | colony inner % | docks / robot | live / run | "
-            + " | ".join(f"{e} (at the station)" for e in names) + " |")  # fmt: skip
-    return "\n".join([head, "|" + "---|" * (5 + len(names)), *rows,
+                    f"{s['failed_handoffs_pct']:.1f} | {s['live_per_run']:.2f} | {by_robot} | "
+                    f"{' | '.join(cells)} |")  # fmt: skip
+    end_cols = " | ".join(f"{e} (at the station)" for e in names)
+    head = ("| world | runs | colony inner % | docks / robot | failed hand-offs % | live / run "
+            f"| live by robot | {end_cols} |")  # fmt: skip
+    return "\n".join([head, "|" + "---|" * (7 + len(names)), *rows,
                       "", f"gap table − physics: {pooled['gap_inner_pp']:+.1f} pp"])  # fmt: skip
 
 
