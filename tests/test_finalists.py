@@ -35,6 +35,7 @@ def test_each_file_is_a_section_or_a_whole_chromosome(path):
      ("cov_s1_sliphalf_min_p13g0896_pop1.txt", "nav_s1_p13g0896.txt"),
      ("cov_s1_all4mean_refined_p0i222.txt", "nav_s1_p13g0896.txt"),
      ("cov_s1_worst4_refined_p0i160.txt", "nav_s1_p13g0896.txt"),
+     ("cov_s1_navmix_p1i245.txt", "nav_s1_mix.txt"),
      ("colony_s1_liver.txt", "nav_s1_station_colony.txt"),
      ("colony_s1_coverer.txt", "nav_s1_station_colony.txt"),
      ("colony_s1_liver_beside.txt", "nav_s1_station_colony.txt"),
