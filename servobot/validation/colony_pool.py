@@ -121,7 +121,7 @@ def pool(
     table world's runs in their place."""
     out: dict[str, Any] = {}
     for w in WORLDS:
-        inner, docks, live = [], [], []
+        inner, docks = [], []
         by_robot: defaultdict[int, list[bool]] = defaultdict(list)
         ends: Counter[str] = Counter()
         at_station: Counter[str] = Counter()
@@ -133,7 +133,6 @@ def pool(
                     continue
                 rec = run[w]
                 inner.append(100.0 * rec["colony"]["inner_squares"] / n_inner)
-                live.append(sum(b["end"]["code"] in LIVE_ENDS for b in rec["robots"]))
                 for i, b in enumerate(rec["robots"]):
                     by_robot[i].append(b["end"]["code"] in LIVE_ENDS)
                     docks.append(b["docks"])
@@ -145,7 +144,8 @@ def pool(
         empty = ends[END_NAMES[END_POWER_EMPTY]]
         out[w] = {
             "runs": len(inner), "inner_pct": float(np.mean(inner)),
-            "docks_per_robot": float(np.mean(docks)), "live_per_run": float(np.mean(live)),
+            "docks_per_robot": float(np.mean(docks)),
+            "live_per_run": sum(map(sum, by_robot.values())) / len(inner),
             "live_by_robot": [float(np.mean(by_robot[i])) for i in sorted(by_robot)],
             "failed_handoffs_pct": 100.0 * empty / max(sum(docks) + empty, 1),
             "robots": len(docks), "ends": dict(ends), "ends_at_station": dict(at_station),
