@@ -1,6 +1,7 @@
 """The chromosomes kept in ``docs/finalists`` (the ones the docs' measurements rest on): each
 parses as a navigation section or a whole chromosome, the folder's README lists exactly them,
-and each coverage finalist carries the navigation section its name says it evolved on."""
+each coverage finalist carries the navigation section its name says it evolved on, and each
+composed one the coverage and navigation sections it was put together from."""
 
 from __future__ import annotations
 
@@ -44,4 +45,15 @@ def test_each_file_is_a_section_or_a_whole_chromosome(path):
 )  # fmt: skip
 def test_coverage_finalists_carry_their_navigation_section(coverage, navigation):
     full = read_chromosome(FOLDER / coverage)
+    np.testing.assert_array_equal(full[SECTION_GENES:], read_chromosome(FOLDER / navigation))
+
+
+@pytest.mark.parametrize(
+    ("chromosome", "coverage", "navigation"),
+    [("cov_s1_sliphalf_navmix.txt", "cov_s1_sliphalf_p13g0896_pop4.txt", "nav_s1_mix.txt")],
+)
+def test_composed_finalists_carry_both_sections(chromosome, coverage, navigation):
+    full = read_chromosome(FOLDER / chromosome)
+    np.testing.assert_array_equal(full[:SECTION_GENES],
+                                  read_chromosome(FOLDER / coverage)[:SECTION_GENES])
     np.testing.assert_array_equal(full[SECTION_GENES:], read_chromosome(FOLDER / navigation))
