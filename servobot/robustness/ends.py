@@ -1,0 +1,141 @@
+"""How test matrices' coverage runs end in physics, and what each end costs, per world (issue 16):
+``python -m servobot.robustness.ends MATRIX... [--only NAME] [--out DIR]``.
+
+A world's physics coverage falls short of ``shipped`` in two ways: runs that last the 600 steps
+cover less (reach: shorter strides, ``python -m servobot.robustness.reach``), or more runs end
+early, the store empty or the robot in the kill zone. This splits every physics coverage run
+of the MATRIX folders (finished ``servobot robustness`` folders, their
+``runs/WORLD/NAME/report.json``; several pool, e.g. one chromosome's starts of several seeds)
+by how it ended, and reports per world: the runs, their mean inner %, the runs that lasted the
+step limit (count, inner %, docks), the others (count by end, inner %, docks, steps), and what the
+early ends cost the world: the step-limit runs' mean inner % less the world's. The step-limit
+runs' mean is what the world would cover had every run lasted (a navigation section that docked
+every hand-off); what is left between it and ``shipped``'s is the reach. ``--only NAME`` keeps
+the chromosomes whose name holds NAME. Writes ``DIR/ends.json`` and ``DIR/ends.md`` (DIR
+defaults to the first MATRIX) and prints the Markdown. Exit 0, or 2 naming what is missing.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evolve.interpreter import END_NAMES, END_STEP_LIMIT
+from infra.command import Interrupted, run_command
+from infra.errors import InputError
+from infra.io import read_json, write_report
+from servobot.robustness.floor import read_matrix
+from servobot.robustness.matrix import RUNS_DIR
+from servobot.validation.lone import NAVIGATION_MODE
+
+PROG = "python -m servobot.robustness.ends"
+STEP_LIMIT = END_NAMES[END_STEP_LIMIT]
+
+
+def physics_runs(matrices: list[Path], only: str = "") -> dict[str, list[dict[str, Any]]]:
+    """Per world (in the first matrix's order, then any new ones), the physics outcome of every
+    finished coverage run of ``matrices`` whose chromosome name holds ``only``: ``end`` (its
+    name), ``inner`` (% of the world's inner squares), ``docks``, ``steps``."""
+    out: dict[str, list[dict[str, Any]]] = {}
+    for matrix in matrices:
+        doc, _ = read_matrix(matrix)
+        for world in doc["worlds"]:
+            runs = out.setdefault(world["name"], [])
+            for c in world["per_chromosome"]:
+                if c["mode"] == NAVIGATION_MODE or only not in c["name"]:
+                    continue
+                path = matrix / RUNS_DIR / world["name"] / c["name"] / "report.json"
+                report = read_json(path, what="matrix cell report", error=InputError)
+                total = report["summary"]["inner_squares_total"]
+                for run in report["runs"]:
+                    p = run["physics"]
+                    if run["error"] is None and p is not None:
+                        inner = 100.0 * p["inner_squares"] / total
+                        runs.append({"end": p["end"]["name"], "inner": inner,
+                                     "docks": p["docks"], "steps": p["steps"]})  # fmt: skip
+    out = {w: runs for w, runs in out.items() if runs}
+    if not out:
+        raise InputError(f"{', '.join(map(str, matrices))}: no physics coverage run"
+                         + (f" of a chromosome named *{only}*" if only else ""))  # fmt: skip
+    return out
+
+
+def _mean(values: list[float]) -> float | None:
+    return float(np.mean(values)) if values else None
+
+
+def split_by_end(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """A world's runs split into those that lasted the step limit and the others (early ends,
+    counted by kind), with ``early_cost``: the step-limit runs' mean inner % less all runs'
+    (pp; None when no run lasted)."""
+    full = [r for r in runs if r["end"] == STEP_LIMIT]
+    early = [r for r in runs if r["end"] != STEP_LIMIT]
+    def means(rs: list[dict[str, Any]], keys: tuple[str, ...]) -> dict[str, Any]:
+        return {"runs": len(rs), **{k: _mean([r[k] for r in rs]) for k in keys}}
+
+    full_inner, inner = _mean([r["inner"] for r in full]), _mean([r["inner"] for r in runs])
+    return {
+        "runs": len(runs),
+        "inner": inner,
+        "step_limit": means(full, ("inner", "docks")),
+        "early": {**means(early, ("inner", "docks", "steps")),
+                  "by_end": {e: sum(r["end"] == e for r in early)
+                             for e in sorted({r["end"] for r in early})}},
+        "early_cost": None if full_inner is None else full_inner - inner,
+    }  # fmt: skip
+
+
+def matrix_ends(matrices: list[Path], only: str = "") -> dict[str, Any]:
+    """The record ``ends.json``: the matrices read, the name filter and each world's split."""
+    runs = physics_runs(matrices, only)
+    return {"matrices": [str(m) for m in matrices], "only": only,
+            "worlds": [{"world": w, **split_by_end(r)} for w, r in runs.items()]}  # fmt: skip
+
+
+def _f(v: float | None, digits: int = 1) -> str:
+    return "—" if v is None else f"{v:.{digits}f}"
+
+
+def markdown(doc: dict[str, Any]) -> str:
+    """One row per world: runs, inner %, the step-limit runs, the early ends, the counterfactual."""
+    which = f" of the chromosomes named *{doc['only']}*" if doc["only"] else ""
+    lines = [f"Physics coverage runs{which} by how they end (`{'`, `'.join(doc['matrices'])}`): "
+             "inner % of the inner squares, mean over the runs.", "",
+             "| world | runs | inner % | lasted the step limit: runs, inner %, docks "
+             "| ended early: runs (by end), inner %, docks, steps | early ends cost, pp |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for w in doc["worlds"]:
+        s, e = w["step_limit"], w["early"]
+        kinds = ", ".join(f"{k} {n}" for k, n in e["by_end"].items())
+        early = f"{e['runs']}{f' ({kinds})' if kinds else ''}"
+        lines.append(f"| {w['world']} | {w['runs']} | {_f(w['inner'])} "
+                     f"| {s['runs']}, {_f(s['inner'])}, {_f(s['docks'])} "
+                     f"| {early}, {_f(e['inner'])}, {_f(e['docks'])}, {_f(e['steps'], 0)} "
+                     f"| {_f(w['early_cost'])} |")  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Split, write and print; exit 0 or 2 (module docstring)."""
+    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    ap.add_argument("matrices", type=Path, nargs="+", metavar="MATRIX",
+                    help="finished servobot robustness folders, pooled")  # fmt: skip
+    ap.add_argument("--only", default="", metavar="NAME",
+                    help="keep the chromosomes whose name holds NAME (default: all)")  # fmt: skip
+    ap.add_argument("--out", type=Path, default=None, metavar="DIR",
+                    help="where ends.{json,md} go (default the first MATRIX)")  # fmt: skip
+    a = ap.parse_args(argv)
+
+    def body() -> int:
+        doc = matrix_ends(a.matrices, a.only)
+        write_report(a.out or a.matrices[0], "ends", doc, markdown(doc))
+        return 0
+
+    return run_command(PROG, body, lambda: Interrupted("the files written so far", PROG))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
