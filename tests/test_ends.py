@@ -86,6 +86,10 @@ def test_main_writes_and_refuses(tmp_path, capsys):
     assert "no physics coverage run of a chromosome named *zz*" in capsys.readouterr().err
     assert main([str(tmp_path / "nothing")]) == 2
     assert "not a finished `servobot robustness` folder" in capsys.readouterr().err
-    (m / "runs" / "shipped" / "x" / "report.json").write_text("{not json")
+    cell = m / "runs" / "shipped" / "x" / "report.json"
+    cell.write_text("{not json")
     assert main([str(m)]) == 2
     assert "report.json" in capsys.readouterr().err
+    cell.write_text(json.dumps({"runs": []}))  # no summary
+    assert main([str(m)]) == 2
+    assert "x/report.json: not a matrix cell report" in capsys.readouterr().err

@@ -49,18 +49,24 @@ def physics_runs(matrices: list[Path], only: str = "") -> dict[str, list[dict[st
                     continue
                 path = matrix / RUNS_DIR / world["name"] / c["name"] / "report.json"
                 report = read_json(path, what="matrix cell report", error=InputError)
-                total = report["summary"]["inner_squares_total"]
-                for run in report["runs"]:
-                    p = run["physics"]
-                    if run["error"] is None and p is not None:
-                        inner = 100.0 * p["inner_squares"] / total
-                        runs.append({"end": p["end"]["name"], "inner": inner,
-                                     "docks": p["docks"], "steps": p["steps"]})  # fmt: skip
+                try:
+                    runs += _cell_runs(report)
+                except (KeyError, TypeError, ZeroDivisionError) as exc:
+                    raise InputError(f"{path}: not a matrix cell report ({exc!r})") from exc
     out = {w: runs for w, runs in out.items() if runs}
     if not out:
         raise InputError(f"{', '.join(map(str, matrices))}: no physics coverage run"
                          + (f" of a chromosome named *{only}*" if only else ""))  # fmt: skip
     return out
+
+
+def _cell_runs(report: dict[str, Any]) -> list[dict[str, Any]]:
+    """The finished physics runs of one matrix cell's ``report.json`` (``physics_runs``' rows)."""
+    total = report["summary"]["inner_squares_total"]
+    done = [run["physics"] for run in report["runs"]
+            if run["error"] is None and run["physics"] is not None]  # fmt: skip
+    return [{"end": p["end"]["name"], "inner": 100.0 * p["inner_squares"] / total,
+             "docks": p["docks"], "steps": p["steps"]} for p in done]  # fmt: skip
 
 
 def _mean(values: list[float]) -> float | None:
@@ -73,18 +79,18 @@ def split_by_end(runs: list[dict[str, Any]]) -> dict[str, Any]:
     (pp; None when no run lasted)."""
     full = [r for r in runs if r["end"] == STEP_LIMIT]
     early = [r for r in runs if r["end"] != STEP_LIMIT]
+
     def means(rs: list[dict[str, Any]], keys: tuple[str, ...]) -> dict[str, Any]:
         return {"runs": len(rs), **{k: _mean([r[k] for r in rs]) for k in keys}}
 
-    full_inner, inner = _mean([r["inner"] for r in full]), _mean([r["inner"] for r in runs])
+    whole, lasted = means(runs, ("inner",)), means(full, ("inner", "docks"))
     return {
-        "runs": len(runs),
-        "inner": inner,
-        "step_limit": means(full, ("inner", "docks")),
+        **whole,
+        "step_limit": lasted,
         "early": {**means(early, ("inner", "docks", "steps")),
                   "by_end": {e: sum(r["end"] == e for r in early)
                              for e in sorted({r["end"] for r in early})}},
-        "early_cost": None if full_inner is None else full_inner - inner,
+        "early_cost": None if lasted["inner"] is None else lasted["inner"] - whole["inner"],
     }  # fmt: skip
 
 
@@ -100,7 +106,7 @@ def _f(v: float | None, digits: int = 1) -> str:
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    """One row per world: runs, inner %, the step-limit runs, the early ends, the counterfactual."""
+    """One row per world: runs, inner %, the step-limit runs, the early ends, their cost."""
     which = f" of the chromosomes named *{doc['only']}*" if doc["only"] else ""
     lines = [f"Physics coverage runs{which} by how they end (`{'`, `'.join(doc['matrices'])}`): "
              "inner % of the inner squares, mean over the runs.", "",
