@@ -18,6 +18,7 @@ defaults to the first MATRIX) and prints the Markdown. Exit 0, or 2 naming what 
 from __future__ import annotations
 
 import argparse
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -26,16 +27,17 @@ import numpy as np
 from evolve.interpreter import END_NAMES, END_STEP_LIMIT
 from infra.command import Interrupted, run_command
 from infra.errors import InputError
-from infra.io import read_json, write_report
+from infra.io import write_report
 from servobot.robustness.floor import read_matrix
 from servobot.robustness.matrix import RUNS_DIR
+from servobot.robustness.measure import cell_report
 from servobot.validation.lone import NAVIGATION_MODE
 
 PROG = "python -m servobot.robustness.ends"
 STEP_LIMIT = END_NAMES[END_STEP_LIMIT]
 
 
-def physics_runs(matrices: list[Path], only: str = "") -> dict[str, list[dict[str, Any]]]:
+def runs_by_world(matrices: list[Path], only: str = "") -> dict[str, list[dict[str, Any]]]:
     """Per world (in the first matrix's order, then any new ones), the physics outcome of every
     finished coverage run of ``matrices`` whose chromosome name holds ``only``: ``end`` (its
     name), ``inner`` (% of the world's inner squares), ``docks``, ``steps``."""
@@ -47,11 +49,11 @@ def physics_runs(matrices: list[Path], only: str = "") -> dict[str, list[dict[st
             for c in world["per_chromosome"]:
                 if c["mode"] == NAVIGATION_MODE or only not in c["name"]:
                     continue
-                path = matrix / RUNS_DIR / world["name"] / c["name"] / "report.json"
-                report = read_json(path, what="matrix cell report", error=InputError)
+                report = cell_report(matrix, world["name"], c["name"])
                 try:
                     runs += _cell_runs(report)
                 except (KeyError, TypeError, ZeroDivisionError) as exc:
+                    path = matrix / RUNS_DIR / world["name"] / c["name"] / "report.json"
                     raise InputError(f"{path}: not a matrix cell report ({exc!r})") from exc
     out = {w: runs for w, runs in out.items() if runs}
     if not out:
@@ -61,7 +63,7 @@ def physics_runs(matrices: list[Path], only: str = "") -> dict[str, list[dict[st
 
 
 def _cell_runs(report: dict[str, Any]) -> list[dict[str, Any]]:
-    """The finished physics runs of one matrix cell's ``report.json`` (``physics_runs``' rows)."""
+    """The finished physics runs of one matrix cell's ``report.json`` (``runs_by_world``' rows)."""
     total = report["summary"]["inner_squares_total"]
     done = [run["physics"] for run in report["runs"]
             if run["error"] is None and run["physics"] is not None]  # fmt: skip
@@ -88,15 +90,14 @@ def split_by_end(runs: list[dict[str, Any]]) -> dict[str, Any]:
         **whole,
         "step_limit": lasted,
         "early": {**means(early, ("inner", "docks", "steps")),
-                  "by_end": {e: sum(r["end"] == e for r in early)
-                             for e in sorted({r["end"] for r in early})}},
+                  "by_end": dict(sorted(Counter(r["end"] for r in early).items()))},
         "early_cost": None if lasted["inner"] is None else lasted["inner"] - whole["inner"],
     }  # fmt: skip
 
 
 def matrix_ends(matrices: list[Path], only: str = "") -> dict[str, Any]:
     """The record ``ends.json``: the matrices read, the name filter and each world's split."""
-    runs = physics_runs(matrices, only)
+    runs = runs_by_world(matrices, only)
     return {"matrices": [str(m) for m in matrices], "only": only,
             "worlds": [{"world": w, **split_by_end(r)} for w, r in runs.items()]}  # fmt: skip
 

@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -45,10 +44,11 @@ from evolve.interpreter import END_NAMES
 from evolve.table import load_table
 from infra.bounds import check_workers
 from infra.command import Interrupted, command_line, run_command
+from infra.errors import InputError
 from infra.executors import RayExecutor, make_executor
-from infra.io import write_report
+from infra.io import read_json, write_report
 from servobot.progress import RunBar, progress_bar
-from servobot.robustness.matrix import RobustnessSettings, check_reuse, run_matrix
+from servobot.robustness.matrix import RUNS_DIR, RobustnessSettings, check_reuse, run_matrix
 from servobot.robustness.ranking import (
     RankingError,
     agreement,
@@ -76,10 +76,16 @@ TUNE_GRID = {
 """The envelope scales ``--tune`` tries (every combination)."""
 
 
+def cell_report(matrix: Path, world: str, name: str) -> dict[str, Any]:
+    """The ``report.json`` of chromosome ``name``'s cell in ``world`` of a finished matrix
+    (``InputError`` naming the file when it cannot be read)."""
+    path = matrix / RUNS_DIR / world / name / "report.json"
+    return read_json(path, what="matrix cell report", error=InputError)
+
+
 def cell_runs(matrix: Path, world: str, names: list[str]) -> list[list[dict[str, Any]]]:
     """The runs (``report.json``'s ``runs``) of each named genome's cell in ``world``."""
-    return [json.loads((matrix / "runs" / world / n / "report.json").read_text())["runs"]
-            for n in names]  # fmt: skip
+    return [cell_report(matrix, world, n)["runs"] for n in names]
 
 
 def inner_squares(cells: list[list[dict[str, Any]]], starts: int, side: str) -> np.ndarray:
