@@ -10,8 +10,8 @@ outputs of all N (Figure 9, summary, bests): the files of a fresh N-population r
 
 Run: ``python -m evolve.grow STAGE_DIR --populations N`` (``STAGE_DIR`` = ``RUN/navigation``
 or ``RUN/coverage``). Growing an interrupted stage is allowed; a second grow to the same N
-changes nothing. Only navigation and coverage stages grow (a colony stage's teams are drawn
-across its populations).
+changes nothing. Only navigation and coverage stages grow: theirs is the independence the
+tests check (a colony stage's teams and partners are not covered).
 """
 
 from __future__ import annotations

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -45,12 +46,7 @@ def test_grown_stage_resumed_equals_the_larger_stage_run_afresh(runs, tmp_path):
 
 def test_growing_again_or_to_fewer_and_bad_folders(runs, tmp_path, capsys):
     one, _ = runs
-    stage = tmp_path / "navigation"
-    stage.mkdir()
-    for p in (one / "navigation").glob("**/*"):
-        if p.is_file():
-            (stage / p.relative_to(one / "navigation")).parent.mkdir(parents=True, exist_ok=True)
-            (stage / p.relative_to(one / "navigation")).write_bytes(p.read_bytes())
+    stage = shutil.copytree(one / "navigation", tmp_path / "navigation")
     assert grow.grow(stage, 3) == (1, 1)
     assert grow.grow(stage, 3) == (3, 0)  # already grown: nothing rewritten
     assert json.loads((stage / "settings.json").read_text())["GASettings"]["populations"] == 3
