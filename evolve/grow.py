@@ -26,8 +26,8 @@ import numpy as np
 
 from evolve.checkpoint import read_npz, write_npz
 from infra.errors import InputError
-from infra.io import ReadError, atomic_write_json, read_json
-from infra.rundir import COMMAND_KEY, RECORD_FILE, folder_lock
+from infra.io import atomic_write_json, read_json
+from infra.rundir import COMMAND_KEY, RECORD_FILE, folder_lock, record_command
 
 GROWABLE = ("evolve navigation", "evolve coverage")
 """The stage commands whose folders may grow."""
@@ -55,11 +55,9 @@ def grow(folder: str | Path, populations: int) -> tuple[int, int]:
     if not folder.is_dir():
         raise GrowError(f"{folder}: no such folder; STAGE_DIR is a stage's, e.g. RUN/coverage")
     with folder_lock(folder, option="STAGE_DIR"):
-        try:
-            record = read_json(record_path, what="stage settings record")
-        except ReadError as exc:
-            raise GrowError(f"{exc}; STAGE_DIR is a stage's folder, e.g. RUN/coverage") from exc
-        command = record.get(COMMAND_KEY) if isinstance(record, dict) else None
+        record = read_json(record_path, what="stage settings record", error=lambda msg: GrowError(
+            f"{msg}; STAGE_DIR is a stage's folder, e.g. RUN/coverage"))  # fmt: skip
+        command = record_command(record)
         if command not in GROWABLE:
             raise GrowError(f"{record_path}: a {command!r} run; only {' and '.join(GROWABLE)} "
                             "stages grow")  # fmt: skip

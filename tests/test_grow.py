@@ -32,8 +32,7 @@ def runs(tmp_path_factory):
 
 def test_grown_stage_resumed_equals_the_larger_stage_run_afresh(runs, tmp_path):
     one, two = runs
-    run = tmp_path / "run"
-    stages.run_navigation(run, table=TABLE, ga=ONE)
+    run = shutil.copytree(one, tmp_path / "run")
     with pytest.raises(RunDirError, match="GASettings.populations: 1 there, 2 here"):
         stages.run_navigation(run, table=TABLE, ga=TWO, resume=True)
     assert grow.main([str(run / "navigation"), "--populations", "2"]) == 0
