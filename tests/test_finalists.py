@@ -38,6 +38,8 @@ def test_each_file_is_a_section_or_a_whole_chromosome(path):
      ("cov_s1_worst4_refined_p0i160.txt", "nav_s1_p13g0896.txt"),
      ("cov_s1_navmix_p1i245.txt", "nav_s1_mix.txt"),
      ("cov_s1_sliphalf_navmix.txt", "nav_s1_mix.txt"),
+     ("cov_s1_sh15_p7_refined_p0i189.txt", "nav_s1_mix.txt"),
+     ("cov_s1_p0i189_navp7.txt", "nav_s1_p7_p0g0512.txt"),
      ("colony_s1_liver.txt", "nav_s1_station_colony.txt"),
      ("colony_s1_coverer.txt", "nav_s1_station_colony.txt"),
      ("colony_s1_liver_beside.txt", "nav_s1_station_colony.txt"),
@@ -51,7 +53,8 @@ def test_coverage_finalists_carry_their_navigation_section(coverage, navigation)
 
 @pytest.mark.parametrize(
     ("chromosome", "coverage"),
-    [("cov_s1_sliphalf_navmix.txt", "cov_s1_sliphalf_p13g0896_pop4.txt")],
+    [("cov_s1_sliphalf_navmix.txt", "cov_s1_sliphalf_p13g0896_pop4.txt"),
+     ("cov_s1_p0i189_navp7.txt", "cov_s1_sh15_p7_refined_p0i189.txt")],  # fmt: skip
 )
 def test_composed_finalists_carry_their_coverage_section(chromosome, coverage):
     np.testing.assert_array_equal(read_chromosome(FOLDER / chromosome)[:SECTION_GENES],
