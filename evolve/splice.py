@@ -32,17 +32,12 @@ from evolve.codec import (
     read_chromosome,
     write_chromosome,
 )
+from evolve.stages import navigation_section
 from infra.command import Interrupted, run_command
 from infra.errors import InputError
 from infra.io import check_output_dir
 
 PROG = "python -m evolve.splice"
-
-
-def navigation_section(path: Path) -> np.ndarray:
-    """The (8, 30) navigation section of an 8-gene section file or a 16-gene chromosome."""
-    bits = read_chromosome(path)
-    return bits if len(bits) == SECTION_GENES else bits[SECTION_GENES:]
 
 
 def coverage_section(path: Path) -> np.ndarray:
@@ -88,11 +83,12 @@ def splice(
     first: dict[bytes, str] = {}
     written, same = [], []
     for name, path in zip(names(navigation), navigation, strict=True):
-        nav = navigation_section(path)
-        if nav.tobytes() in first:
-            same.append((name, first[nav.tobytes()]))
+        nav = navigation_section(read_chromosome(path))
+        key = nav.tobytes()
+        if key in first:
+            same.append((name, first[key]))
             continue
-        first[nav.tobytes()] = name
+        first[key] = name
         header = f"{coverage}: coverage (genes 0-7)\n{path}: navigation (genes 8-15)"
         written.append((name, np.concatenate([cov, nav]), header))
     return written, same
