@@ -56,10 +56,12 @@ class Handoff:
     """``DOCKED``, ``CUT``, or the name of the end that came first (``END_NAMES``)."""
 
 
-class _Watcher:
-    """Follows one run's events: the hand-offs that ended in a dock, and the one still open."""
+class HandoffWatcher:
+    """Follows one coverage run's events (an ``on_event`` of ``evolve.interpreter.run``, in
+    either world) and gathers its hand-offs: ``finish(end)`` after the run gives them all."""
 
     def __init__(self, pose: tuple[float, float, float], power: float) -> None:
+        """``pose`` (cm, cm, deg) and ``power`` (V): the run's start."""
         self.last: tuple[tuple[float, float, float], float, int] = (pose, power, 0)
         self.mode = "coverage"
         self.open: tuple[tuple[float, float, float], float, int] | None = None
@@ -74,6 +76,14 @@ class _Watcher:
             self.found.append(Handoff(*self.open, DOCKED))
             self.open = None
         self.last = (e.pose, e.power, e.step)
+
+    def finish(self, end: int) -> list[Handoff]:
+        """Every hand-off of the run that ended with code ``end``, in order: the one still
+        open (the run ended before its approach docked) closed by ``open_outcome(end)``."""
+        if self.open is not None:
+            self.found.append(Handoff(*self.open, open_outcome(end)))
+            self.open = None
+        return self.found
 
 
 def open_outcome(end: int) -> str:
@@ -95,14 +105,19 @@ def collect_handoffs(
     values = getattr(table, "values", table)
     out = []
     for x, y, h in np.asarray(starts, dtype=float):
-        watch = _Watcher((float(x), float(y), float(h)), world.start_power_v)
+        watch = HandoffWatcher((float(x), float(y), float(h)), world.start_power_v)
         tw = TableWorld(values, x, y, h, world)
         res = run(chromosome, tw, mode="coverage", settings=world, max_steps=max_steps,
                   on_event=watch)  # fmt: skip
-        if watch.open is not None:  # the run ended before the approach docked
-            watch.found.append(Handoff(*watch.open, open_outcome(res.end)))
-        out.append(watch.found)
+        out.append(watch.finish(res.end))
     return out
+
+
+def handoff_record(h: Handoff) -> dict[str, Any]:
+    """One hand-off as JSON: ``pose`` [x, y, h] (cm, cm, deg), ``power`` (V), ``step``,
+    ``outcome``."""
+    return {"pose": [round(float(v), 4) for v in h.pose], "power": round(float(h.power), 6),
+            "step": int(h.step), "outcome": h.outcome}  # fmt: skip
 
 
 def handoff_rate(handoffs: Iterable[Handoff]) -> dict[str, Any]:
@@ -184,9 +199,11 @@ __all__ = [
     "CUT",
     "DOCKED",
     "Handoff",
+    "HandoffWatcher",
     "PosesError",
     "collect_handoffs",
     "handoff_rate",
+    "handoff_record",
     "open_outcome",
     "parse_poses",
     "read_poses",

@@ -51,6 +51,29 @@ def test_a_worlds_runs_split_by_hand():
     assert split_by_end(runs[2:])["early_cost"] is None
 
 
+def _ho(outcome: str, step: int = 0) -> dict:
+    return {"pose": [400.0, 250.0, 90.0], "power": 3.9, "step": step, "outcome": outcome}
+
+
+def test_a_worlds_hand_offs_pooled_by_hand():
+    # run 1 lasted: 3 docked, its last approach cut; run 2's store emptied on its second
+    # approach; run 3 ended in the kill zone while covering, after one docked approach; run 4
+    # (an older record) has none: 4 + 0 + 1 docked, 1 failed -> 5 of 6, one early end in approach
+    runs = [{"end": "step limit", "inner": 60.0, "docks": 3, "steps": 600,
+             "handoffs": [_ho("docked"), _ho("docked"), _ho("docked"), _ho("cut")]},
+            {"end": "power empty", "inner": 30.0, "docks": 1, "steps": 300,
+             "handoffs": [_ho("docked"), _ho("power empty")]},
+            {"end": "kill zone", "inner": 20.0, "docks": 1, "steps": 200,
+             "handoffs": [_ho("docked")]},
+            {"end": "step limit", "inner": 50.0, "docks": 7, "steps": 600}]  # fmt: skip
+    a = split_by_end(runs)["handoffs"]
+    assert a == {"runs": 3, "handoffs": 7, "docked": 5, "failed": 1, "cut": 1,
+                 "dock_rate": pytest.approx(5 / 6), "early_in_approach": 1}  # fmt: skip
+    doc = {"matrices": ["m"], "only": "", "worlds": [{"world": "w", **split_by_end(runs)}]}
+    assert "| 5 of 6, 83.3 % (3 runs recorded them) | 1 |" in markdown(doc)
+    assert split_by_end(runs[3:])["handoffs"] is None  # no record: no figure
+
+
 def test_matrices_pool_per_world(tmp_path):
     a, b = tmp_path / "seed1", tmp_path / "seed2"
     failed = {"physics": None, "error": "unstable"}

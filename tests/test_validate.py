@@ -7,9 +7,10 @@ import json
 
 import numpy as np
 import pytest
-from chromosome_text import LIGHT_FOLLOWER
+from chromosome_text import LIGHT_FOLLOWER, B, G, chrom, gene
 
 from evolve.codec import parse_chromosome
+from evolve.handoff import DOCKED, collect_handoffs, handoff_record
 from evolve.settings import WorldSettings
 from evolve.starts import coverage_starts
 from evolve.table import PAPER_TABLE, load_table, table_to_json
@@ -203,10 +204,32 @@ def test_a_navigation_section_runs_in_navigation_mode_from_its_powers(tmp_path):
     for w in ("table", "physics"):
         assert full[w]["end"]["name"] == "docked" and full[w]["docks"] == 1
         assert weak[w]["end"]["name"] == "power empty" and weak[w]["steps"] == 10
+        assert "handoffs" not in full[w]  # a navigation run has none
     with pytest.raises(ValidationError, match="power of start 1 is 2.0 V"):
         validate(SECTION, starts, table=load_table("paper"), powers=[4.0, 2.0])
     with pytest.raises(ValidationError, match="one per start"):
         validate(SECTION, starts, table=load_table("paper"), powers=[4.0])
+
+
+def test_coverage_runs_record_their_hand_offs_in_both_worlds():
+    # coverage turns on the spot right and back left (2 × 0.0209 V), its low-power test then
+    # positive at the start pose (as tests/test_navigation_choice.py's SWITCH_AT_ONCE); the
+    # navigation section walks east, 5 cycles into the docking box from x = 400
+    cover = gene("00", G(14), G(6), B(4, 0), G(7))
+    walk = "\n".join([gene("00", G(0), G(0), G(0), G(0))] * 8)
+    bits = np.concatenate([chrom(cover, n=8), parse_chromosome(walk)])
+    start = np.array([[400.0, 250.0, 90.0]])
+    table = load_table("paper")
+    (run,) = validate(bits, start, table=table, workers=1, max_steps=40)["runs"]
+    (found,) = collect_handoffs(bits, start, table=table, world=WorldSettings(), max_steps=40)
+    assert run["table"]["handoffs"] == [handoff_record(h) for h in found]
+    for w in ("table", "physics"):
+        first = run[w]["handoffs"][0]
+        assert first["step"] == 2 and first["outcome"] == DOCKED
+        np.testing.assert_allclose(first["pose"], start[0], atol=0.5)  # physics turns in place
+        assert first["power"] == pytest.approx(4.0 - 2 * 0.0209, abs=1e-4)
+        outcomes = [h["outcome"] for h in run[w]["handoffs"]]
+        assert outcomes.count(DOCKED) == run[w]["docks"] >= 1
 
 
 def test_cli_runs_a_section_from_hand_off_poses(tmp_path, capsys):

@@ -13,6 +13,11 @@ runs' mean is what the world would cover had every run lasted (a navigation sect
 every hand-off); what is left between it and ``shipped``'s is the reach. ``--only NAME`` keeps
 the chromosomes whose name holds NAME. Writes ``DIR/ends.json`` and ``DIR/ends.md`` (DIR
 defaults to the first MATRIX) and prints the Markdown. Exit 0, or 2 naming what is missing.
+
+Runs validated since the forty-fifth session record their hand-offs (``evolve.handoff``: each
+switch from coverage to navigation and how it came out); for them each world also reports the
+hand-offs docked (docked / (docked + failed), as ``evolve.handoff.handoff_rate``) and how many
+early ends came during an approach (the navigation section failed) rather than while covering.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from evolve.handoff import CUT, DOCKED, Handoff, handoff_rate
 from evolve.interpreter import END_NAMES, END_STEP_LIMIT
 from infra.command import Interrupted, run_command
 from infra.errors import InputError
@@ -68,17 +74,34 @@ def _cell_runs(report: dict[str, Any]) -> list[dict[str, Any]]:
     done = [run["physics"] for run in report["runs"]
             if run["error"] is None and run["physics"] is not None]  # fmt: skip
     return [{"end": p["end"]["name"], "inner": 100.0 * p["inner_squares"] / total,
-             "docks": p["docks"], "steps": p["steps"]} for p in done]  # fmt: skip
+             "docks": p["docks"], "steps": p["steps"], "handoffs": p.get("handoffs")}
+            for p in done]  # fmt: skip
 
 
 def _mean(values: list[float]) -> float | None:
     return float(np.mean(values)) if values else None
 
 
+def approaches(runs: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """The hand-offs of the ``runs`` that recorded theirs (``servobot validate`` since the
+    forty-fifth session), pooled: ``runs`` (how many recorded), ``evolve.handoff.handoff_rate``'s
+    counts and ``dock_rate``, and ``early_in_approach``: the runs that ended early with an
+    approach open (the navigation section failed; the others ended while covering). None when
+    no run recorded its hand-offs."""
+    known = [r for r in runs if r.get("handoffs") is not None]
+    if not known:
+        return None
+    rate = handoff_rate(Handoff(tuple(h["pose"]), h["power"], h["step"], h["outcome"])
+                        for r in known for h in r["handoffs"])  # fmt: skip
+    failed = [r for r in known if r["end"] != STEP_LIMIT and r["handoffs"]
+              and r["handoffs"][-1]["outcome"] not in (DOCKED, CUT)]  # fmt: skip
+    return {"runs": len(known), **rate, "early_in_approach": len(failed)}
+
+
 def split_by_end(runs: list[dict[str, Any]]) -> dict[str, Any]:
     """A world's runs split into those that lasted the step limit and the others (early ends,
     counted by kind), with ``early_cost``: the step-limit runs' mean inner % less all runs'
-    (pp; None when no run lasted)."""
+    (pp; None when no run lasted), and the runs' hand-offs (``approaches``)."""
     full = [r for r in runs if r["end"] == STEP_LIMIT]
     early = [r for r in runs if r["end"] != STEP_LIMIT]
 
@@ -92,6 +115,7 @@ def split_by_end(runs: list[dict[str, Any]]) -> dict[str, Any]:
         "early": {**means(early, ("inner", "docks", "steps")),
                   "by_end": dict(sorted(Counter(r["end"] for r in early).items()))},
         "early_cost": None if lasted["inner"] is None else lasted["inner"] - whole["inner"],
+        "handoffs": approaches(runs),
     }  # fmt: skip
 
 
@@ -106,14 +130,24 @@ def _f(v: float | None, digits: int = 1) -> str:
     return "—" if v is None else f"{v:.{digits}f}"
 
 
+def _approach_cells(a: dict[str, Any] | None, runs: int) -> str:
+    """The two hand-off cells of a world's row; the runs that recorded them named when not all."""
+    if a is None:
+        return "— | —"
+    rate = "—" if a["dock_rate"] is None else f"{100 * a['dock_rate']:.1f} %"
+    some = "" if a["runs"] == runs else f" ({a['runs']} runs recorded them)"
+    return f"{a['docked']} of {a['docked'] + a['failed']}, {rate}{some} | {a['early_in_approach']}"
+
+
 def markdown(doc: dict[str, Any]) -> str:
     """One row per world: runs, inner %, the step-limit runs, the early ends, their cost."""
     which = f" of the chromosomes named *{doc['only']}*" if doc["only"] else ""
     lines = [f"Physics coverage runs{which} by how they end (`{'`, `'.join(doc['matrices'])}`): "
              "inner % of the inner squares, mean over the runs.", "",
              "| world | runs | inner % | lasted the step limit: runs, inner %, docks "
-             "| ended early: runs (by end), inner %, docks, steps | early ends cost, pp |",
-             "|---|---|---|---|---|---|"]  # fmt: skip
+             "| ended early: runs (by end), inner %, docks, steps | early ends cost, pp "
+             "| hand-offs docked (of those that finished) | early ends during an approach |",
+             "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for w in doc["worlds"]:
         s, e = w["step_limit"], w["early"]
         kinds = ", ".join(f"{k} {n}" for k, n in e["by_end"].items())
@@ -121,7 +155,8 @@ def markdown(doc: dict[str, Any]) -> str:
         lines.append(f"| {w['world']} | {w['runs']} | {_f(w['inner'])} "
                      f"| {s['runs']}, {_f(s['inner'])}, {_f(s['docks'])} "
                      f"| {early}, {_f(e['inner'])}, {_f(e['docks'])}, {_f(e['steps'], 0)} "
-                     f"| {_f(w['early_cost'])} |")  # fmt: skip
+                     f"| {_f(w['early_cost'])} "
+                     f"| {_approach_cells(w['handoffs'], w['runs'])} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 

@@ -48,6 +48,7 @@ import numpy as np
 
 from evolve import geometry
 from evolve.codec import FULL_GENES, SECTION_GENES, check_bits, format_chromosome
+from evolve.handoff import HandoffWatcher, handoff_record
 from evolve.interpreter import END_NAMES, run
 from evolve.settings import ColonySettings, WorldSettings
 from evolve.starts import MAX_HEADING_DEG, navigation_starts_where
@@ -276,6 +277,24 @@ def result_record(res: Any) -> dict[str, Any]:
     }
 
 
+def handoff_watcher(job: StartJob) -> HandoffWatcher | None:
+    """A hand-off watcher for a coverage run of ``job`` (``evolve.handoff``), None for a
+    navigation run (it has no hand-offs)."""
+    if job.mode == NAVIGATION_MODE:
+        return None
+    power = job.world.start_power_v if job.power is None else job.power
+    return HandoffWatcher(tuple(map(float, job.start)), power)
+
+
+def run_record(res: Any, watch: HandoffWatcher | None, t0: float) -> dict[str, Any]:
+    """``result_record`` of a run begun at ``perf_counter()`` ``t0``, with its wall time and,
+    for a coverage run, ``handoffs``: each switch to navigation (``handoff_record``)."""
+    out = result_record(res) | {"wall_s": round(time.perf_counter() - t0, 4)}
+    if watch is not None:
+        out["handoffs"] = [handoff_record(h) for h in watch.finish(res.end)]
+    return out
+
+
 def physics_world(job: StartJob, on_frame: Callable[..., None] | None = None) -> Any:
     """The physics world of one run: the robot of ``job.model`` placed at ``job.start`` in the
     arena, its servo noise drawn from ``default_rng((job.seed, job.index))``."""
@@ -302,11 +321,18 @@ def run_start(job: StartJob, make_world: Callable[[], Any] | None = None) -> dic
     def table_run() -> tuple[dict[str, Any], np.ndarray]:
         t0 = time.perf_counter()
         table_world = TableWorld(job.table, x, y, h, job.world)
+        watch = handoff_watcher(job)
+        handlers = [f for f in (watch, None if rec is None else rec.table_event) if f is not None]
+
+        def on_table(e: Any) -> None:
+            for f in handlers:
+                f(e)
+
         res = run(
             job.bits, table_world, mode=job.mode, settings=job.world, start_power=job.power,
-            max_steps=job.max_steps, on_event=None if rec is None else rec.table_event,
+            max_steps=job.max_steps, on_event=on_table if handlers else None,
         )  # fmt: skip
-        return result_record(res) | {"wall_s": round(time.perf_counter() - t0, 4)}, res.track
+        return run_record(res, watch, t0), res.track
 
     def physics_run(last: dict[str, Any]) -> tuple[dict[str, Any], np.ndarray]:
         t0 = time.perf_counter()
@@ -317,8 +343,12 @@ def run_start(job: StartJob, make_world: Callable[[], Any] | None = None) -> dic
         if rec is not None:
             rec.attach_physics(pw)
 
+        watch = handoff_watcher(job)
+
         def on_physics(e: Any) -> None:
             last.update(steps=e.step, squares=e.squares, pose=[float(v) for v in e.pose])
+            if watch is not None:
+                watch(e)
             if rec is not None:
                 rec.physics_event(e)
 
@@ -326,7 +356,7 @@ def run_start(job: StartJob, make_world: Callable[[], Any] | None = None) -> dic
             job.bits, pw, mode=job.mode, settings=job.world, start_power=job.power,
             max_steps=job.max_steps, on_event=on_physics,
         )  # fmt: skip
-        return result_record(res) | {"wall_s": round(time.perf_counter() - t0, 4)}, res.track
+        return run_record(res, watch, t0), res.track
 
     out = {"index": job.index, "start": start_record(job.start)}
     if job.power is not None:
