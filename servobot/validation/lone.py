@@ -286,6 +286,20 @@ def handoff_watcher(job: StartJob) -> HandoffWatcher | None:
     return HandoffWatcher(tuple(map(float, job.start)), power)
 
 
+def fan_out(*handlers: Callable[[Any], None] | None) -> Callable[[Any], None] | None:
+    """One ``on_event`` calling each given handler in order (None for a handler left out), or
+    None when none is given."""
+    given = [f for f in handlers if f is not None]
+    if not given:
+        return None
+
+    def on_event(e: Any) -> None:
+        for f in given:
+            f(e)
+
+    return on_event
+
+
 def run_record(res: Any, watch: HandoffWatcher | None, t0: float) -> dict[str, Any]:
     """``result_record`` of a run begun at ``perf_counter()`` ``t0``, with its wall time and,
     for a coverage run, ``handoffs``: each switch to navigation (``handoff_record``)."""
@@ -322,15 +336,10 @@ def run_start(job: StartJob, make_world: Callable[[], Any] | None = None) -> dic
         t0 = time.perf_counter()
         table_world = TableWorld(job.table, x, y, h, job.world)
         watch = handoff_watcher(job)
-        handlers = [f for f in (watch, None if rec is None else rec.table_event) if f is not None]
-
-        def on_table(e: Any) -> None:
-            for f in handlers:
-                f(e)
-
         res = run(
             job.bits, table_world, mode=job.mode, settings=job.world, start_power=job.power,
-            max_steps=job.max_steps, on_event=on_table if handlers else None,
+            max_steps=job.max_steps,
+            on_event=fan_out(watch, None if rec is None else rec.table_event),
         )  # fmt: skip
         return run_record(res, watch, t0), res.track
 
@@ -345,16 +354,13 @@ def run_start(job: StartJob, make_world: Callable[[], Any] | None = None) -> dic
 
         watch = handoff_watcher(job)
 
-        def on_physics(e: Any) -> None:
+        def progress(e: Any) -> None:
             last.update(steps=e.step, squares=e.squares, pose=[float(v) for v in e.pose])
-            if watch is not None:
-                watch(e)
-            if rec is not None:
-                rec.physics_event(e)
 
         res = run(
             job.bits, pw, mode=job.mode, settings=job.world, start_power=job.power,
-            max_steps=job.max_steps, on_event=on_physics,
+            max_steps=job.max_steps,
+            on_event=fan_out(progress, watch, None if rec is None else rec.physics_event),
         )  # fmt: skip
         return run_record(res, watch, t0), res.track
 
