@@ -130,6 +130,30 @@ def test_resume_reruns_only_an_unfinished_cell(matrix, tmp_path):
     assert again == doc  # same seeds: the same record
 
 
+def test_a_matrix_resumed_across_the_hand_off_records_still_finishes(matrix, tmp_path):
+    # a cell finished before coverage records carried their hand-offs (forty-fifth session),
+    # the other world's cell run anew: the table world is still one world
+    out, files, doc = matrix
+    copy = tmp_path / "m"
+    shutil.copytree(out, copy)
+    old = copy / "runs" / "shipped" / "c16" / "report.json"
+    rep = json.loads(old.read_text())
+    assert all("handoffs" in r["table"] for r in rep["runs"])
+    for r in rep["runs"]:
+        for side in ("table", "physics"):
+            del r[side]["handoffs"]
+    old.write_text(json.dumps(rep))
+    (copy / "runs" / "weak" / "c16" / "report.json").unlink()
+    again = run_matrix(files, copy, SETTINGS, executor=SerialExecutor(), resume=True)
+    assert _placeless(again) == _placeless(doc)
+    # a table run that differs is still caught
+    rep["runs"][0]["table"]["docks"] += 1
+    old.write_text(json.dumps(rep))
+    (copy / "runs" / "weak" / "c16" / "report.json").unlink()
+    with pytest.raises(RuntimeError, match="c16: the table world differs"):
+        run_matrix(files, copy, SETTINGS, executor=SerialExecutor(), resume=True)
+
+
 def _without_wall_times(report: dict) -> list[dict]:
     """A cell report's runs with the per-run wall times (which no two runs share) dropped."""
     return [{k: ({f: v for f, v in side.items() if f != "wall_s"} if isinstance(side, dict)
