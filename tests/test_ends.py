@@ -51,8 +51,8 @@ def test_a_worlds_runs_split_by_hand():
     assert split_by_end(runs[2:])["early_cost"] is None
 
 
-def _ho(outcome: str, step: int = 0) -> dict:
-    return {"pose": [400.0, 250.0, 90.0], "power": 3.9, "step": step, "outcome": outcome}
+def _ho(outcome: str) -> dict:
+    return {"pose": [400.0, 250.0, 90.0], "power": 3.9, "step": 0, "outcome": outcome}
 
 
 def test_a_worlds_hand_offs_pooled_by_hand():
