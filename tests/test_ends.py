@@ -69,7 +69,8 @@ def test_a_worlds_hand_offs_pooled_by_hand():
     a = split_by_end(runs)["handoffs"]
     assert a == {"runs": 3, "handoffs": 7, "docked": 5, "failed": 1, "cut": 1,
                  "dock_rate": pytest.approx(5 / 6), "early_in_approach": 1}  # fmt: skip
-    doc = {"matrices": ["m"], "only": "", "worlds": [{"world": "w", **split_by_end(runs)}]}
+    world = {"world": "w", **split_by_end(runs), "drop": None}
+    doc = {"matrices": ["m"], "only": "", "worlds": [world]}
     assert "| 5 of 6, 83.3 % (3 runs recorded them) | 1 |" in markdown(doc)
     assert split_by_end(runs[3:])["handoffs"] is None  # no record: no figure
 
@@ -96,6 +97,36 @@ def test_matrices_pool_per_world(tmp_path):
     assert "named *x*" in text
     row = "| slippery | 2 | 31.2 | 1, 50.0, 7.0 | 1 (power empty 1), 12.5, 7.0, 250 | 18.8 |"
     assert row in text
+
+
+def test_a_worlds_drop_below_shipped_paired_by_hand(tmp_path):
+    # two matrices, chromosome x: shipped 40, 24 | 48 of 64; slippery 32, (failed) | 40, and
+    # y, whose shipped run failed. Pairs: (40 - 32), (48 - 40) squares -> 12.5 pp both, s.e. 0;
+    # the failed run and y have no partner. s.e. of slippery's inner % over 32, 40, 16
+    a, b = tmp_path / "a", tmp_path / "b"
+    failed = {"physics": None, "error": "unstable"}
+    _write_matrix(a, {"shipped": {"x": [_run("step limit", 40), _run("step limit", 24)],
+                                  "y": [failed]},
+                      "slippery": {"x": [_run("step limit", 32), failed],
+                                   "y": [_run("power empty", 16, steps=300)]}})  # fmt: skip
+    _write_matrix(b, {"shipped": {"x": [_run("step limit", 48)]},
+                      "slippery": {"x": [_run("step limit", 40)]}})  # fmt: skip
+    doc = matrix_ends([a, b])
+    shipped, slippery = doc["worlds"]
+    assert shipped["drop"] is None
+    assert slippery["drop"] == {"pairs": 2, "mean": pytest.approx(12.5), "se": pytest.approx(0.0)}
+    pct = [50.0, 62.5, 25.0]  # 32, 40 and 16 of 64
+    se = (sum((p - sum(pct) / 3) ** 2 for p in pct) / 2) ** 0.5 / 3**0.5
+    assert slippery["inner_se"] == pytest.approx(se)
+    assert f"| {se:.1f} | 12.5 ± 0.0 (2) |" in markdown(doc)
+    # one pair: no s.e.; without shipped: no drop
+    one = matrix_ends([b])
+    assert one["worlds"][1]["drop"] == {"pairs": 1, "mean": pytest.approx(12.5), "se": None}
+    assert "| 12.5 (1) |" in markdown(one)
+    assert matrix_ends([b], only="x")["worlds"][0]["inner_se"] is None
+    c = tmp_path / "c"
+    _write_matrix(c, {"slippery": {"x": [_run("step limit", 40)]}})
+    assert matrix_ends([c])["worlds"][0]["drop"] is None
 
 
 def test_main_writes_and_refuses(tmp_path, capsys):

@@ -56,7 +56,8 @@ def test_coverage_finalists_carry_their_navigation_section(coverage, navigation)
     [("cov_s1_sliphalf_navmix.txt", "cov_s1_sliphalf_p13g0896_pop4.txt"),
      ("cov_s1_p0i189_navp7.txt", "cov_s1_sh15_p7_refined_p0i189.txt"),
      ("cov_s1_p0i189_navcovA_p1.txt", "cov_s1_sh15_p7_refined_p0i189.txt"),
-     ("cov_s1_p0i189_navcovA_p4.txt", "cov_s1_sh15_p7_refined_p0i189.txt")],  # fmt: skip
+     ("cov_s1_p0i189_navcovA_p4.txt", "cov_s1_sh15_p7_refined_p0i189.txt"),
+     ("cov_s1_p0i189_navC_p1.txt", "cov_s1_sh15_p7_refined_p0i189.txt")],  # fmt: skip
 )
 def test_composed_finalists_carry_their_coverage_section(chromosome, coverage):
     np.testing.assert_array_equal(read_chromosome(FOLDER / chromosome)[:SECTION_GENES],

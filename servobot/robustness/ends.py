@@ -7,12 +7,15 @@ early, the store empty or the robot in the kill zone. This splits every physics 
 of the MATRIX folders (finished ``servobot robustness`` folders, their
 ``runs/WORLD/NAME/report.json``; several pool, e.g. one chromosome's starts of several seeds)
 by how it ended, and reports per world: the runs, their mean inner %, the runs that lasted the
-step limit (count, inner %, docks), the others (count by end, inner %, docks, steps), and what the
+step limit (count, inner %, docks), the others (count by end, inner %, docks, steps), what the
 early ends cost the world: the step-limit runs' mean inner % less the world's. The step-limit
 runs' mean is what the world would cover had every run lasted (a navigation section that docked
-every hand-off); what is left between it and ``shipped``'s is the reach. ``--only NAME`` keeps
-the chromosomes whose name holds NAME. Writes ``DIR/ends.json`` and ``DIR/ends.md`` (DIR
-defaults to the first MATRIX) and prints the Markdown. Exit 0, or 2 naming what is missing.
+every hand-off); what is left between it and ``shipped``'s is the reach. How sure each figure
+is: the standard error of the world's mean over its runs, and its drop below ``shipped`` paired
+over the runs both worlds made (the same matrix, chromosome and start) with its standard error.
+``--only NAME`` keeps the chromosomes whose name holds NAME. Writes ``DIR/ends.json`` and
+``DIR/ends.md`` (DIR defaults to the first MATRIX) and prints the Markdown. Exit 0, or 2 naming
+what is missing.
 
 Runs validated since the forty-fifth session record their hand-offs (``evolve.handoff``: each
 switch from coverage to navigation and how it came out); for them each world also reports the
@@ -37,6 +40,7 @@ from infra.io import write_report
 from servobot.robustness.floor import read_matrix
 from servobot.robustness.matrix import RUNS_DIR
 from servobot.robustness.measure import cell_report
+from servobot.robustness.worlds import SHIPPED
 from servobot.validation.lone import NAVIGATION_MODE
 
 PROG = "python -m servobot.robustness.ends"
@@ -46,7 +50,8 @@ STEP_LIMIT = END_NAMES[END_STEP_LIMIT]
 def runs_by_world(matrices: list[Path], only: str = "") -> dict[str, list[dict[str, Any]]]:
     """Per world (in the first matrix's order, then any new ones), the physics outcome of every
     finished coverage run of ``matrices`` whose chromosome name holds ``only``: ``end`` (its
-    name), ``inner`` (% of the world's inner squares), ``docks``, ``steps``."""
+    name), ``inner`` (% of the world's inner squares), ``docks``, ``steps``, ``handoffs`` and
+    ``key`` (matrix, chromosome, run), the same for one start in every world."""
     out: dict[str, list[dict[str, Any]]] = {}
     for matrix in matrices:
         doc, _ = read_matrix(matrix)
@@ -57,7 +62,8 @@ def runs_by_world(matrices: list[Path], only: str = "") -> dict[str, list[dict[s
                     continue
                 report = cell_report(matrix, world["name"], c["name"])
                 try:
-                    runs += _cell_runs(report)
+                    runs += [{**r, "key": (str(matrix), c["name"], i)}
+                             for i, r in _cell_runs(report)]  # fmt: skip
                 except (KeyError, TypeError, ZeroDivisionError) as exc:
                     path = matrix / RUNS_DIR / world["name"] / c["name"] / "report.json"
                     raise InputError(f"{path}: not a matrix cell report ({exc!r})") from exc
@@ -68,18 +74,37 @@ def runs_by_world(matrices: list[Path], only: str = "") -> dict[str, list[dict[s
     return out
 
 
-def _cell_runs(report: dict[str, Any]) -> list[dict[str, Any]]:
-    """The finished physics runs of one matrix cell's ``report.json`` (``runs_by_world``' rows)."""
+def _cell_runs(report: dict[str, Any]) -> list[tuple[int, dict[str, Any]]]:
+    """The finished physics runs of one matrix cell's ``report.json``, each with its place in
+    the cell (``runs_by_world``' rows, without the key)."""
     total = report["summary"]["inner_squares_total"]
-    done = [run["physics"] for run in report["runs"]
+    done = [(i, run["physics"]) for i, run in enumerate(report["runs"])
             if run["error"] is None and run["physics"] is not None]  # fmt: skip
-    return [{"end": p["end"]["name"], "inner": 100.0 * p["inner_squares"] / total,
-             "docks": p["docks"], "steps": p["steps"], "handoffs": p.get("handoffs")}
-            for p in done]  # fmt: skip
+    return [(i, {"end": p["end"]["name"], "inner": 100.0 * p["inner_squares"] / total,
+                 "docks": p["docks"], "steps": p["steps"], "handoffs": p.get("handoffs")})
+            for i, p in done]  # fmt: skip
 
 
 def _mean(values: list[float]) -> float | None:
     return float(np.mean(values)) if values else None
+
+
+def _se(values: list[float]) -> float | None:
+    """The standard error of the mean of ``values`` (None below two)."""
+    return float(np.std(values, ddof=1) / np.sqrt(len(values))) if len(values) > 1 else None
+
+
+def paired_drop(
+    reference: list[dict[str, Any]], runs: list[dict[str, Any]]
+) -> dict[str, Any] | None:
+    """The reference world's inner % less this world's over the runs both made (same ``key``):
+    ``pairs``, ``mean`` (pp, positive = this world covers less) and its standard error ``se``
+    (None below two pairs). None when no run pairs."""
+    ref = {r["key"]: r["inner"] for r in reference}
+    diffs = [ref[r["key"]] - r["inner"] for r in runs if r["key"] in ref]
+    if not diffs:
+        return None
+    return {"pairs": len(diffs), "mean": float(np.mean(diffs)), "se": _se(diffs)}
 
 
 def approaches(runs: list[dict[str, Any]]) -> dict[str, Any] | None:
@@ -111,6 +136,7 @@ def split_by_end(runs: list[dict[str, Any]]) -> dict[str, Any]:
     whole, lasted = means(runs, ("inner",)), means(full, ("inner", "docks"))
     return {
         **whole,
+        "inner_se": _se([r["inner"] for r in runs]),
         "step_limit": lasted,
         "early": {**means(early, ("inner", "docks", "steps")),
                   "by_end": dict(sorted(Counter(r["end"] for r in early).items()))},
@@ -120,14 +146,25 @@ def split_by_end(runs: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def matrix_ends(matrices: list[Path], only: str = "") -> dict[str, Any]:
-    """The record ``ends.json``: the matrices read, the name filter and each world's split."""
+    """The record ``ends.json``: the matrices read, the name filter and each world's split, with
+    its ``drop`` below ``shipped`` (``paired_drop``; None for ``shipped`` or without it)."""
     runs = runs_by_world(matrices, only)
+    ref = runs.get(SHIPPED)
     return {"matrices": [str(m) for m in matrices], "only": only,
-            "worlds": [{"world": w, **split_by_end(r)} for w, r in runs.items()]}  # fmt: skip
+            "worlds": [{"world": w, **split_by_end(r),
+                        "drop": None if ref is None or w == SHIPPED else paired_drop(ref, r)}
+                       for w, r in runs.items()]}  # fmt: skip
 
 
 def _f(v: float | None, digits: int = 1) -> str:
     return "—" if v is None else f"{v:.{digits}f}"
+
+
+def _drop_cell(drop: dict[str, Any] | None) -> str:
+    if drop is None:
+        return "—"
+    se = "" if drop["se"] is None else f" ± {drop['se']:.1f}"
+    return f"{drop['mean']:.1f}{se} ({drop['pairs']})"
 
 
 def _approach_cells(a: dict[str, Any] | None, runs: int) -> str:
@@ -146,8 +183,9 @@ def markdown(doc: dict[str, Any]) -> str:
              "inner % of the inner squares, mean over the runs.", "",
              "| world | runs | inner % | lasted the step limit: runs, inner %, docks "
              "| ended early: runs (by end), inner %, docks, steps | early ends cost, pp "
-             "| hand-offs docked (of those that finished) | early ends during an approach |",
-             "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+             "| hand-offs docked (of those that finished) | early ends during an approach "
+             f"| inner % s.e. | drop below `{SHIPPED}`, pp ± s.e. (paired runs) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for w in doc["worlds"]:
         s, e = w["step_limit"], w["early"]
         kinds = ", ".join(f"{k} {n}" for k, n in e["by_end"].items())
@@ -156,7 +194,8 @@ def markdown(doc: dict[str, Any]) -> str:
                      f"| {s['runs']}, {_f(s['inner'])}, {_f(s['docks'])} "
                      f"| {early}, {_f(e['inner'])}, {_f(e['docks'])}, {_f(e['steps'], 0)} "
                      f"| {_f(w['early_cost'])} "
-                     f"| {_approach_cells(w['handoffs'], w['runs'])} |")  # fmt: skip
+                     f"| {_approach_cells(w['handoffs'], w['runs'])} "
+                     f"| {_f(w['inner_se'])} | {_drop_cell(w['drop'])} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
