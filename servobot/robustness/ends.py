@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 from evolve.handoff import CUT, DOCKED, Handoff, handoff_rate
 from evolve.interpreter import END_NAMES, END_STEP_LIMIT
@@ -62,8 +63,7 @@ def runs_by_world(matrices: list[Path], only: str = "") -> dict[str, list[dict[s
                     continue
                 report = cell_report(matrix, world["name"], c["name"])
                 try:
-                    runs += [{**r, "key": (str(matrix), c["name"], i)}
-                             for i, r in _cell_runs(report)]  # fmt: skip
+                    runs += _cell_runs(report, (str(matrix), c["name"]))
                 except (KeyError, TypeError, ZeroDivisionError) as exc:
                     path = matrix / RUNS_DIR / world["name"] / c["name"] / "report.json"
                     raise InputError(f"{path}: not a matrix cell report ({exc!r})") from exc
@@ -74,14 +74,15 @@ def runs_by_world(matrices: list[Path], only: str = "") -> dict[str, list[dict[s
     return out
 
 
-def _cell_runs(report: dict[str, Any]) -> list[tuple[int, dict[str, Any]]]:
-    """The finished physics runs of one matrix cell's ``report.json``, each with its place in
-    the cell (``runs_by_world``' rows, without the key)."""
+def _cell_runs(report: dict[str, Any], cell: tuple[str, str]) -> list[dict[str, Any]]:
+    """The finished physics runs of one matrix cell's ``report.json`` (``runs_by_world``' rows),
+    each keyed by ``cell`` (matrix, chromosome) and its place in the cell."""
     total = report["summary"]["inner_squares_total"]
     done = [(i, run["physics"]) for i, run in enumerate(report["runs"])
             if run["error"] is None and run["physics"] is not None]  # fmt: skip
-    return [(i, {"end": p["end"]["name"], "inner": 100.0 * p["inner_squares"] / total,
-                 "docks": p["docks"], "steps": p["steps"], "handoffs": p.get("handoffs")})
+    return [{"end": p["end"]["name"], "inner": 100.0 * p["inner_squares"] / total,
+             "docks": p["docks"], "steps": p["steps"], "handoffs": p.get("handoffs"),
+             "key": (*cell, i)}
             for i, p in done]  # fmt: skip
 
 
@@ -91,7 +92,7 @@ def _mean(values: list[float]) -> float | None:
 
 def _se(values: list[float]) -> float | None:
     """The standard error of the mean of ``values`` (None below two)."""
-    return float(np.std(values, ddof=1) / np.sqrt(len(values))) if len(values) > 1 else None
+    return float(stats.sem(values)) if len(values) > 1 else None
 
 
 def paired_drop(
