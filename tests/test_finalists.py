@@ -31,7 +31,8 @@ def test_each_file_is_a_section_or_a_whole_chromosome(path):
 
 @pytest.mark.parametrize(
     ("coverage", "navigation"),
-    [("cov_s1_sliphalf_p13g0896_pop4.txt", "nav_s1_p13g0896.txt"),
+    [("cov_s0_sliphalf_pop4.txt", "nav_s0_default.txt"),
+     ("cov_s1_sliphalf_p13g0896_pop4.txt", "nav_s1_p13g0896.txt"),
      ("cov_s1_sliphalf_worst_handoffs_pop3.txt", "nav_s1_worst_handoffs.txt"),
      ("cov_s1_sliphalf_min_p13g0896_pop1.txt", "nav_s1_p13g0896.txt"),
      ("cov_s1_all4mean_refined_p0i222.txt", "nav_s1_p13g0896.txt"),
