@@ -41,6 +41,8 @@ def test_each_file_is_a_section_or_a_whole_chromosome(path):
      ("cov_s1_sliphalf_navmix.txt", "nav_s1_mix.txt"),
      ("cov_s1_sh15_p7_refined_p0i189.txt", "nav_s1_mix.txt"),
      ("cov_s1_p0i189_navp7.txt", "nav_s1_p7_p0g0512.txt"),
+     ("cov_s1_p0i189_navC_p1.txt", "nav_s1_C_p1.txt"),
+     ("cov_s1_sliphalf_navC_p2.txt", "nav_s1_C_p1.txt"),
      ("colony_s1_liver.txt", "nav_s1_station_colony.txt"),
      ("colony_s1_coverer.txt", "nav_s1_station_colony.txt"),
      ("colony_s1_liver_beside.txt", "nav_s1_station_colony.txt"),
